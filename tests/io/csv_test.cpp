@@ -1,0 +1,47 @@
+#include "io/csv.h"
+
+#include <catch2/catch.hpp>
+
+#include "io/input_error.h"
+
+using millkit::InputError;
+using millkit::ParseCsv;
+using Catch::Matchers::Contains;
+
+TEST_CASE("A numeric CSV is read with its header and rows", "[csv]") {
+  const auto table = ParseCsv("time, a,b\n0,1,2\n# comment\n\n0.5,-1e3,+4\n", "x.csv");
+  REQUIRE(table.columns == std::vector<std::string>{"time", "a", "b"});
+  REQUIRE(table.rows.size() == 2);
+  CHECK(table.rows[1][1] == -1000.0);
+  CHECK(table.rows[1][2] == 4.0);
+  CHECK(table.line_numbers[1] == 5);
+  CHECK(table.Column("b") == 2);
+}
+
+TEST_CASE("A non-numeric cell is rejected naming file, line and column", "[csv]") {
+  REQUIRE_THROWS_WITH(ParseCsv("time,a\n0,1\n1,abc\n", "rec.csv"),
+                      Contains("rec.csv: line 3, column 'a'") && Contains("not a finite number"));
+}
+
+TEST_CASE("A NaN cell is rejected", "[csv]") {
+  REQUIRE_THROWS_WITH(ParseCsv("time,a\n0,nan\n", "rec.csv"), Contains("line 2, column 'a'"));
+}
+
+TEST_CASE("A row with the wrong number of cells is rejected", "[csv]") {
+  REQUIRE_THROWS_WITH(ParseCsv("time,a\n0,1,2\n", "rec.csv"), Contains("line 2: 3 cells"));
+}
+
+TEST_CASE("A missing column is named", "[csv]") {
+  const auto table = ParseCsv("time,a\n0,1\n", "rec.csv");
+  REQUIRE_THROWS_WITH(table.Column("b"), Contains("missing column 'b'"));
+}
+
+TEST_CASE("A time column that does not increase strictly is rejected with its line", "[csv]") {
+  const auto table = ParseCsv("time,a\n0,1\n1,1\n1,2\n", "rec.csv");
+  REQUIRE_THROWS_WITH(millkit::RequireStrictlyIncreasing(table, 0),
+                      Contains("line 4, column 'time'") && Contains("increase strictly"));
+}
+
+TEST_CASE("An empty file is rejected", "[csv]") {
+  REQUIRE_THROWS_AS(ParseCsv("\n\n", "e.csv"), InputError);
+}

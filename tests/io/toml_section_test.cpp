@@ -1,0 +1,40 @@
+#include "io/toml_section.h"
+
+#include <catch2/catch.hpp>
+
+using millkit::TomlSection;
+using Catch::Matchers::Contains;
+
+namespace {
+toml::table Parse(const char* text) { return toml::parse(text); }
+}  // namespace
+
+TEST_CASE("An unknown key is named with the allowed ones", "[toml]") {
+  const auto doc = Parse("stiffnes = 3.0\n");
+  const TomlSection section(doc, "s.toml", "[[link]] #1");
+  REQUIRE_THROWS_WITH(section.RequireOnlyKeys({"stiffness", "damping"}),
+                      Contains("s.toml: [[link]] #1 key 'stiffnes'") && Contains("unknown key") &&
+                          Contains("stiffness, damping"));
+}
+
+TEST_CASE("A missing required number names the key", "[toml]") {
+  const auto doc = Parse("a = 1\n");
+  const TomlSection section(doc, "s.toml", "[scene]");
+  REQUIRE_THROWS_WITH(section.RequiredNumber("duration"),
+                      Contains("key 'duration'") && Contains("is required"));
+}
+
+TEST_CASE("A string where a number belongs is rejected", "[toml]") {
+  const auto doc = Parse("a = \"x\"\n");
+  const TomlSection section(doc, "s.toml", "");
+  REQUIRE_THROWS_WITH(section.RequiredNumber("a"), Contains("must be a number"));
+}
+
+TEST_CASE("Integers are read as numbers and range rules name the value", "[toml]") {
+  const auto doc = Parse("a = 3\nb = -2.5\n");
+  const TomlSection section(doc, "s.toml", "");
+  CHECK(section.RequiredNumber("a") == 3.0);
+  REQUIRE_THROWS_WITH(section.Positive("b", section.RequiredNumber("b")),
+                      Contains("must be > 0 (got -2.5)"));
+  REQUIRE_THROWS_WITH(section.InRange("b", -2.5, -1.0, 1.0), Contains("[-1, 1]"));
+}
