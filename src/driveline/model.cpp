@@ -1,0 +1,634 @@
+#include "driveline/model.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <numeric>
+#include <sstream>
+
+#include <Eigen/Eigenvalues>
+
+#include "io/input_error.h"
+#include "io/toml_section.h"
+
+namespace millkit::driveline {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+// A surface value this small against the size of its terms is zero to roundoff.
+constexpr double kRoundoffZero = 1e-14;
+// A static torque this small against the loads is no torque (the link rests in its gap).
+constexpr double kNoStaticTorque = 1e-12;
+// Surfaces per backlash link and per drive (see model.h).
+constexpr int kLinkSurfaces = 6;
+enum Surface { kS0 = 0, kS1, kS2, kS3, kS4, kS5 };
+enum DriveSurface { kD0 = 0, kD1 };
+
+// Masses on the `to` side of scene link `link` (the subtree B of SPEC §2.5).
+std::vector<int> ToSideMasses(const Scene& scene, int link) {
+  const int n = static_cast<int>(scene.masses.size());
+  std::vector<std::vector<int>> neighbours(n);
+  for (int l = 0; l < static_cast<int>(scene.links.size()); ++l) {
+    if (l == link) continue;
+    neighbours[scene.links[l].from].push_back(scene.links[l].to);
+    neighbours[scene.links[l].to].push_back(scene.links[l].from);
+  }
+  std::vector<bool> seen(n, false);
+  std::vector<int> stack{scene.links[link].to}, subtree;
+  seen[scene.links[link].to] = true;
+  while (!stack.empty()) {
+    const int i = stack.back();
+    stack.pop_back();
+    subtree.push_back(i);
+    for (int j : neighbours[i]) {
+      if (!seen[j]) {
+        seen[j] = true;
+        stack.push_back(j);
+      }
+    }
+  }
+  return subtree;
+}
+
+double TwistFromTorque(const Link& link, double torque, double load_scale) {
+  const double half = 0.5 * link.backlash_rad;
+  if (std::abs(torque) <= kNoStaticTorque * load_scale) return link.gap_position * half;
+  return (torque > 0.0 ? half : -half) + torque / link.stiffness_Nm_per_rad;
+}
+
+}  // namespace
+
+LinkMode ModeOf(LinkPhase phase) {
+  switch (phase) {
+    case LinkPhase::kPosSpringDamper:
+      return LinkMode::kPosSpringDamper;
+    case LinkPhase::kPosDoubleSpring:
+      return LinkMode::kPosDoubleSpring;
+    case LinkPhase::kNegSpringDamper:
+      return LinkMode::kNegSpringDamper;
+    case LinkPhase::kNegDoubleSpring:
+      return LinkMode::kNegDoubleSpring;
+    default:
+      return LinkMode::kFree;
+  }
+}
+
+Reduction ReduceToBand(const Scene& scene) {
+  const int n = static_cast<int>(scene.masses.size());
+  Reduction reduction;
+  reduction.link_rigid.assign(scene.links.size(), false);
+  std::vector<int> root(n);
+  std::iota(root.begin(), root.end(), 0);
+  std::vector<double> inertia(n);
+  std::vector<std::string> label(n);
+  for (int i = 0; i < n; ++i) {
+    inertia[i] = scene.masses[i].inertia_kg_m2;
+    label[i] = scene.masses[i].name;
+  }
+  auto find = [&](int i) {
+    while (root[i] != i) i = root[i];
+    return i;
+  };
+  if (scene.band_Hz) {
+    const double threshold = kBandFactor * *scene.band_Hz;
+    while (true) {
+      int best = -1;
+      double best_hz = 0.0;
+      for (int l = 0; l < static_cast<int>(scene.links.size()); ++l) {
+        const Link& link = scene.links[l];
+        if (reduction.link_rigid[l] || link.backlash_rad > 0.0) continue;
+        const int a = find(link.from), b = find(link.to);
+        const double hz =
+            std::sqrt(link.stiffness_Nm_per_rad * (1.0 / inertia[a] + 1.0 / inertia[b])) /
+            (2.0 * kPi);
+        if (hz >= threshold && hz > best_hz) {
+          best = l;
+          best_hz = hz;
+        }
+      }
+      if (best < 0) break;
+      const Link& link = scene.links[best];
+      const int a = find(link.from), b = find(link.to);
+      reduction.link_rigid[best] = true;
+      std::ostringstream line;
+      line << "link '" << link.name << "' (" << FormatNumber(std::round(best_hz)) << " Hz >= "
+           << kBandFactor << " x band " << FormatNumber(*scene.band_Hz) << " Hz) made rigid: "
+           << label[a] << " + " << label[b] << " merged";
+      reduction.report.push_back(line.str());
+      root[b] = a;
+      inertia[a] += inertia[b];
+      label[a] += "+" + label[b];
+    }
+  }
+  reduction.group_of_mass.assign(n, -1);
+  std::vector<int> group_of_root(n, -1);
+  int groups = 0;
+  for (int i = 0; i < n; ++i) {
+    const int r = find(i);
+    if (group_of_root[r] < 0) group_of_root[r] = groups++;
+    reduction.group_of_mass[i] = group_of_root[r];
+  }
+  return reduction;
+}
+
+double HighestModeHz(const Scene& scene, const Reduction& reduction) {
+  const int groups =
+      1 + *std::max_element(reduction.group_of_mass.begin(), reduction.group_of_mass.end());
+  if (groups < 2) return 0.0;
+  Eigen::VectorXd inertia = Eigen::VectorXd::Zero(groups);
+  for (size_t i = 0; i < scene.masses.size(); ++i) {
+    inertia[reduction.group_of_mass[i]] += scene.masses[i].inertia_kg_m2;
+  }
+  Eigen::MatrixXd k = Eigen::MatrixXd::Zero(groups, groups);
+  for (size_t l = 0; l < scene.links.size(); ++l) {
+    if (reduction.link_rigid[l]) continue;
+    const Link& link = scene.links[l];
+    const bool doubled = scene.contact == ContactLaw::kLimited && link.backlash_rad > 0.0;
+    const double c = link.stiffness_Nm_per_rad * (doubled ? 2.0 : 1.0);
+    const int a = reduction.group_of_mass[link.from], b = reduction.group_of_mass[link.to];
+    k(a, a) += c;
+    k(b, b) += c;
+    k(a, b) -= c;
+    k(b, a) -= c;
+  }
+  const Eigen::VectorXd inv_sqrt = inertia.cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd scaled = inv_sqrt.asDiagonal() * k * inv_sqrt.asDiagonal();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(scaled, Eigen::EigenvaluesOnly);
+  return std::sqrt(std::max(0.0, eigen.eigenvalues().maxCoeff())) / (2.0 * kPi);
+}
+
+void CheckSampleRate(const Scene& scene) {
+  const Reduction reduction = ReduceToBand(scene);
+  const double f_max = HighestModeHz(scene, reduction);
+  const double needed = kSamplesPerFastestPeriod * f_max;
+  if (scene.sample_rate_Hz < needed) {
+    throw InputError(
+        (scene.file.empty() ? std::string("<scene>") : scene.file) +
+        ": [scene] key 'sample_rate': " + FormatNumber(scene.sample_rate_Hz) +
+        " Hz cannot resolve the fastest mode of the model (" + FormatNumber(std::round(f_max)) +
+        " Hz); the rule is sample_rate >= " + FormatNumber(kSamplesPerFastestPeriod) +
+        " x fastest mode = " + FormatNumber(std::ceil(needed)) +
+        " Hz. Raise sample_rate, or set [scene] band to make links far above it rigid");
+  }
+}
+
+std::vector<double> SourceTorquesAt(const Scene& scene, double t) {
+  std::vector<double> torque(scene.masses.size(), 0.0);
+  for (const auto& source : scene.torques) torque[source.mass] += source.ValueAt(t);
+  return torque;
+}
+
+double SteadyDriveTorque(const Scene& scene, double t) {
+  if (!scene.drive) return 0.0;
+  const auto loads = SourceTorquesAt(scene, t);
+  const double net = std::accumulate(loads.begin(), loads.end(), 0.0);
+  return std::clamp(-net, -scene.drive->limit_Nm, scene.drive->limit_Nm);
+}
+
+std::vector<double> QuasiStaticLinkTorques(const Scene& scene,
+                                           const std::vector<double>& mass_torques) {
+  double total_j = 0.0, total_m = 0.0;
+  for (size_t i = 0; i < scene.masses.size(); ++i) {
+    total_j += scene.masses[i].inertia_kg_m2;
+    total_m += mass_torques[i];
+  }
+  const double epsilon = total_m / total_j;
+  std::vector<double> torque(scene.links.size());
+  for (size_t l = 0; l < scene.links.size(); ++l) {
+    double j_b = 0.0, m_b = 0.0;
+    for (int i : ToSideMasses(scene, static_cast<int>(l))) {
+      j_b += scene.masses[i].inertia_kg_m2;
+      m_b += mass_torques[i];
+    }
+    torque[l] = j_b * epsilon - m_b;
+  }
+  return torque;
+}
+
+std::vector<double> StaticLinkTorques(const Scene& scene) {
+  auto torques = SourceTorquesAt(scene, scene.duration_s);
+  if (scene.drive) torques[scene.drive->mass] += SteadyDriveTorque(scene, scene.duration_s);
+  return QuasiStaticLinkTorques(scene, torques);
+}
+
+Model::Model(Scene scene) : scene_(std::move(scene)) {
+  ValidateScene(scene_);
+  reduction_ = ReduceToBand(scene_);
+  const int groups = 1 + *std::max_element(reduction_.group_of_mass.begin(),
+                                           reduction_.group_of_mass.end());
+  group_inertia_.assign(groups, 0.0);
+  for (size_t i = 0; i < scene_.masses.size(); ++i) {
+    group_inertia_[reduction_.group_of_mass[i]] += scene_.masses[i].inertia_kg_m2;
+  }
+  flexible_index_.assign(scene_.links.size(), -1);
+  rigid_to_side_masses_.assign(scene_.links.size(), {});
+  for (int l = 0; l < static_cast<int>(scene_.links.size()); ++l) {
+    if (reduction_.link_rigid[l]) {
+      const int group = reduction_.group_of_mass[scene_.links[l].to];
+      for (int i : ToSideMasses(scene_, l)) {
+        if (reduction_.group_of_mass[i] == group) rigid_to_side_masses_[l].push_back(i);
+      }
+      continue;
+    }
+    flexible_index_[l] = static_cast<int>(flexible_links_.size());
+    backlash_of_flexible_.push_back(-1);
+    if (scene_.links[l].backlash_rad > 0.0) {
+      backlash_of_flexible_.back() = static_cast<int>(backlash_links_.size());
+      backlash_links_.push_back(flexible_index_[l]);
+    }
+    flexible_links_.push_back(l);
+  }
+  nx_ = flexible_link_count() + groups + (has_drive() ? 2 : 0);
+  nw_ = 1 + static_cast<int>(scene_.torques.size());
+  BuildSurfaces();
+}
+
+void Model::BuildSurfaces() {
+  const int count = kLinkSurfaces * backlash_link_count() + (has_drive() ? 2 : 0);
+  surfaces_ = Eigen::MatrixXd::Zero(count, augmented_size());
+  default_side_.assign(count, 1);
+  const int one = nx_;  // column of the constant forcing 1
+  for (int k = 0; k < backlash_link_count(); ++k) {
+    const int f = backlash_links_[k];
+    const Link& link = scene_.links[flexible_links_[f]];
+    const double c = link.stiffness_Nm_per_rad, d = link.damping_Nms_per_rad;
+    const double half = 0.5 * link.backlash_rad;
+    const int a = SpeedIndex(reduction_.group_of_mass[link.from]);
+    const int b = SpeedIndex(reduction_.group_of_mass[link.to]);
+    auto row = [&](int s) { return surfaces_.row(kLinkSurfaces * k + s); };
+    row(kS0)(f) = 1.0;
+    row(kS0)(one) = -half;
+    row(kS1)(f) = 1.0;
+    row(kS1)(one) = half;
+    // S2 = c(ψ − b/2) + d ψ',  S3 = d ψ' − c(ψ − b/2); S4, S5 the same with ψ + b/2.
+    for (int s : {kS2, kS3, kS4, kS5}) {
+      const double sign_c = (s == kS2 || s == kS4) ? 1.0 : -1.0;
+      const double offset = (s == kS2 || s == kS3) ? -half : half;
+      row(s)(f) = sign_c * c;
+      row(s)(one) = sign_c * c * offset;
+      row(s)(a) += d;
+      row(s)(b) -= d;
+    }
+    // The side without contact, or the spring-damper piece, when a surface cannot be told.
+    const int defaults[kLinkSurfaces] = {-1, 1, -1, -1, 1, 1};
+    for (int s = 0; s < kLinkSurfaces; ++s) default_side_[kLinkSurfaces * k + s] = defaults[s];
+  }
+  if (has_drive()) {
+    const Drive& drive = *scene_.drive;
+    const int base = kLinkSurfaces * backlash_link_count();
+    const int w = SpeedIndex(reduction_.group_of_mass[drive.mass]);
+    const int integral = nx_ - 2;
+    for (int s : {kD0, kD1}) {
+      auto row = surfaces_.row(base + s);
+      row(one) = drive.kp * drive.speed_ref_rad_per_s + (s == kD0 ? -1.0 : 1.0) * drive.limit_Nm;
+      row(w) = -drive.kp;
+      row(integral) = drive.ki;
+    }
+    default_side_[base + kD0] = -1;
+    default_side_[base + kD1] = 1;
+  }
+}
+
+void Model::LinearPieces(const Phases& phases, Eigen::MatrixXd* a_out,
+                         Eigen::MatrixXd* b_out) const {
+  Eigen::MatrixXd& a = *a_out;
+  Eigen::MatrixXd& b = *b_out;
+  a = Eigen::MatrixXd::Zero(nx_, nx_);
+  b = Eigen::MatrixXd::Zero(nx_, nw_);
+  for (int f = 0; f < flexible_link_count(); ++f) {
+    const Link& link = scene_.links[flexible_links_[f]];
+    const int ga = reduction_.group_of_mass[link.from], gb = reduction_.group_of_mass[link.to];
+    const int wa = SpeedIndex(ga), wb = SpeedIndex(gb);
+    a(f, wa) += 1.0;
+    a(f, wb) -= 1.0;
+    LinkTorqueCoefficients k{link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, 0.0};
+    const int backlash = backlash_of_flexible_[f];
+    if (backlash >= 0) {
+      k = CoefficientsOf(ModeOf(static_cast<LinkPhase>(phases[backlash])),
+                         link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, link.backlash_rad);
+    }
+    // m = kψ ψ + kv (ω_a − ω_b) + k0; `from` gets −m, `to` gets +m.
+    for (const auto& [row, sign] : {std::pair{wa, -1.0 / group_inertia_[ga]},
+                                    std::pair{wb, 1.0 / group_inertia_[gb]}}) {
+      a(row, f) += sign * k.kpsi;
+      a(row, wa) += sign * k.kv;
+      a(row, wb) -= sign * k.kv;
+      b(row, 0) += sign * k.k0;
+    }
+  }
+  for (size_t s = 0; s < scene_.torques.size(); ++s) {
+    const int g = reduction_.group_of_mass[scene_.torques[s].mass];
+    b(SpeedIndex(g), 1 + static_cast<int>(s)) += 1.0 / group_inertia_[g];
+  }
+  if (has_drive()) {
+    const Drive& drive = *scene_.drive;
+    const int g = reduction_.group_of_mass[drive.mass];
+    const int w = SpeedIndex(g), integral = nx_ - 2, torque = nx_ - 1;
+    a(integral, w) -= 1.0;
+    b(integral, 0) += drive.speed_ref_rad_per_s;
+    a(w, torque) += 1.0 / group_inertia_[g];
+    const auto phase = static_cast<DrivePhase>(phases.back());
+    const double inv_lag = 1.0 / drive.lag_s;
+    a(torque, torque) -= inv_lag;
+    switch (phase) {
+      case DrivePhase::kLinear:
+        b(torque, 0) += inv_lag * drive.kp * drive.speed_ref_rad_per_s;
+        a(torque, w) -= inv_lag * drive.kp;
+        a(torque, integral) += inv_lag * drive.ki;
+        break;
+      case DrivePhase::kSaturatedHigh:
+        b(torque, 0) += inv_lag * drive.limit_Nm;
+        break;
+      case DrivePhase::kSaturatedLow:
+        b(torque, 0) -= inv_lag * drive.limit_Nm;
+        break;
+    }
+  }
+}
+
+Eigen::MatrixXd Model::SystemMatrix(const Phases& phases) const {
+  Eigen::MatrixXd a, b;
+  LinearPieces(phases, &a, &b);
+  const int n = augmented_size();
+  Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n, n);
+  m.topLeftCorner(nx_, nx_) = a;
+  m.block(0, nx_, nx_, nw_) = b;
+  // w' = s (the slope block); the constant 1 has slope 0 by construction of SetForcing.
+  m.block(nx_, nx_ + nw_, nw_, nw_).setIdentity();
+  return m;
+}
+
+std::vector<Model::WatchedSurface> Model::Watched(const Phases& phases) const {
+  std::vector<WatchedSurface> watched;
+  const ContactLaw law = scene_.contact;
+  for (int k = 0; k < backlash_link_count(); ++k) {
+    const int base = kLinkSurfaces * k;
+    auto add = [&](int s, int side) { watched.push_back({base + s, side}); };
+    switch (static_cast<LinkPhase>(phases[k])) {
+      case LinkPhase::kDead:
+        add(kS0, -1);
+        add(kS1, 1);
+        break;
+      case LinkPhase::kPosFree:
+        add(kS0, 1);
+        add(kS2, -1);
+        break;
+      case LinkPhase::kPosSpringDamper:
+        add(kS0, 1);
+        if (law != ContactLaw::kLinear) add(kS2, 1);
+        if (law == ContactLaw::kLimited) add(kS3, -1);
+        break;
+      case LinkPhase::kPosDoubleSpring:
+        add(kS0, 1);
+        add(kS2, 1);
+        add(kS3, 1);
+        break;
+      case LinkPhase::kNegFree:
+        add(kS1, -1);
+        add(kS4, 1);
+        break;
+      case LinkPhase::kNegSpringDamper:
+        add(kS1, -1);
+        if (law != ContactLaw::kLinear) add(kS4, -1);
+        if (law == ContactLaw::kLimited) add(kS5, 1);
+        break;
+      case LinkPhase::kNegDoubleSpring:
+        add(kS1, -1);
+        add(kS4, -1);
+        add(kS5, -1);
+        break;
+    }
+  }
+  if (has_drive()) {
+    const int base = kLinkSurfaces * backlash_link_count();
+    switch (static_cast<DrivePhase>(phases.back())) {
+      case DrivePhase::kLinear:
+        watched.push_back({base + kD0, -1});
+        watched.push_back({base + kD1, 1});
+        break;
+      case DrivePhase::kSaturatedHigh:
+        watched.push_back({base + kD0, 1});
+        break;
+      case DrivePhase::kSaturatedLow:
+        watched.push_back({base + kD1, -1});
+        break;
+    }
+  }
+  return watched;
+}
+
+LinkPhase Model::PhaseFromSides(int k, const std::vector<int>& side) const {
+  const int* s = side.data() + kLinkSurfaces * k;
+  switch (scene_.contact) {
+    case ContactLaw::kLinear:
+      if (s[kS0] > 0) return LinkPhase::kPosSpringDamper;
+      if (s[kS1] < 0) return LinkPhase::kNegSpringDamper;
+      return LinkPhase::kDead;
+    case ContactLaw::kNoPull:
+      if (s[kS0] > 0) return s[kS2] > 0 ? LinkPhase::kPosSpringDamper : LinkPhase::kPosFree;
+      if (s[kS1] < 0) return s[kS4] < 0 ? LinkPhase::kNegSpringDamper : LinkPhase::kNegFree;
+      return LinkPhase::kDead;
+    case ContactLaw::kLimited:
+      if (s[kS0] > 0) {
+        if (s[kS2] <= 0) return LinkPhase::kPosFree;
+        return s[kS3] < 0 ? LinkPhase::kPosSpringDamper : LinkPhase::kPosDoubleSpring;
+      }
+      if (s[kS1] < 0) {
+        if (s[kS4] >= 0) return LinkPhase::kNegFree;
+        return s[kS5] > 0 ? LinkPhase::kNegSpringDamper : LinkPhase::kNegDoubleSpring;
+      }
+      return LinkPhase::kDead;
+  }
+  return LinkPhase::kDead;
+}
+
+Phases Model::Classify(const Eigen::VectorXd& z, const Eigen::VectorXd& zdot,
+                       const Eigen::VectorXd& zddot,
+                       const std::vector<KnownSide>& known_sides) const {
+  const int count = surface_count();
+  std::vector<int> side(count);
+  const Eigen::VectorXd g = surfaces_ * z;
+  const Eigen::VectorXd g1 = surfaces_ * zdot;
+  const Eigen::VectorXd g2 = surfaces_ * zddot;
+  for (int j = 0; j < count; ++j) {
+    const auto known = std::find_if(known_sides.begin(), known_sides.end(),
+                                    [j](const KnownSide& k) { return k.surface == j; });
+    if (known != known_sides.end()) {
+      side[j] = known->side;
+      continue;
+    }
+    const double scale = (surfaces_.row(j).cwiseAbs() * z.cwiseAbs())(0);
+    if (std::abs(g[j]) > kRoundoffZero * scale) {
+      side[j] = g[j] > 0.0 ? 1 : -1;
+      continue;
+    }
+    const double scale1 = (surfaces_.row(j).cwiseAbs() * zdot.cwiseAbs())(0);
+    const double scale2 = (surfaces_.row(j).cwiseAbs() * zddot.cwiseAbs())(0);
+    if (std::abs(g1[j]) > kRoundoffZero * scale1 && g1[j] != 0.0) {
+      side[j] = g1[j] > 0.0 ? 1 : -1;
+    } else if (std::abs(g2[j]) > kRoundoffZero * scale2 && g2[j] != 0.0) {
+      side[j] = g2[j] > 0.0 ? 1 : -1;
+    } else {
+      side[j] = default_side_[j];
+    }
+  }
+  Phases phases(backlash_link_count() + (has_drive() ? 1 : 0), '\0');
+  for (int k = 0; k < backlash_link_count(); ++k) {
+    phases[k] = static_cast<char>(PhaseFromSides(k, side));
+  }
+  if (has_drive()) {
+    const int base = kLinkSurfaces * backlash_link_count();
+    DrivePhase drive = DrivePhase::kLinear;
+    if (side[base + kD0] > 0) drive = DrivePhase::kSaturatedHigh;
+    if (side[base + kD1] < 0) drive = DrivePhase::kSaturatedLow;
+    phases.back() = static_cast<char>(drive);
+  }
+  return phases;
+}
+
+Phases Model::InitialPhases(const Eigen::VectorXd& z0) const {
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(z0.size());
+  Phases phases = Classify(z0, zero, zero, {});
+  // The tie-breaks read the motion, which depends on the phases: iterate to a fixed point.
+  for (int iteration = 0; iteration < 8; ++iteration) {
+    const Eigen::MatrixXd m = SystemMatrix(phases);
+    const Eigen::VectorXd zdot = m * z0;
+    const Phases next = Classify(z0, zdot, m * zdot, {});
+    if (next == phases) break;
+    phases = next;
+  }
+  return phases;
+}
+
+Eigen::VectorXd Model::InitialState() const {
+  Eigen::VectorXd z = Eigen::VectorXd::Zero(augmented_size());
+  auto torques = SourceTorquesAt(scene_, 0.0);
+  double load_scale = 0.0;
+  for (double t : torques) load_scale += std::abs(t);
+  double drive_torque = 0.0;
+  if (has_drive()) {
+    drive_torque = SteadyDriveTorque(scene_, 0.0);
+    torques[scene_.drive->mass] += drive_torque;
+    load_scale += std::abs(drive_torque);
+  }
+  const auto link_torque = QuasiStaticLinkTorques(scene_, torques);
+  for (int f = 0; f < flexible_link_count(); ++f) {
+    const int l = flexible_links_[f];
+    z[f] = TwistFromTorque(scene_.links[l], link_torque[l], load_scale);
+  }
+  for (int g = 0; g < group_count(); ++g) z[SpeedIndex(g)] = scene_.initial_speed_rad_per_s;
+  if (has_drive()) {
+    const Drive& drive = *scene_.drive;
+    const double error = drive.speed_ref_rad_per_s - scene_.initial_speed_rad_per_s;
+    z[nx_ - 2] = drive.ki > 0.0 ? (drive_torque - drive.kp * error) / drive.ki : 0.0;
+    z[nx_ - 1] = drive_torque;
+  }
+  SetForcing(0.0, &z);
+  return z;
+}
+
+void Model::SetForcing(double t, Eigen::VectorXd* z) const {
+  (*z)[nx_] = 1.0;
+  (*z)[nx_ + nw_] = 0.0;
+  for (size_t s = 0; s < scene_.torques.size(); ++s) {
+    (*z)[nx_ + 1 + s] = scene_.torques[s].ValueAt(t);
+    (*z)[nx_ + nw_ + 1 + s] = scene_.torques[s].SlopeAt(t);
+  }
+}
+
+void Model::Outputs(const Phases& phases, const Eigen::VectorXd& z, double* link_torque,
+                    double* mass_speed, double* link_twist,
+                    const Eigen::MatrixXd* system_matrix) const {
+  // Flexible link torques; kept on the stack for the usual small trees.
+  constexpr int kStackLinks = 64;
+  double stack_torque[kStackLinks];
+  std::vector<double> heap_torque;
+  double* flexible_torque = stack_torque;
+  if (flexible_link_count() > kStackLinks) {
+    heap_torque.resize(flexible_link_count());
+    flexible_torque = heap_torque.data();
+  }
+  for (int f = 0; f < flexible_link_count(); ++f) {
+    const int l = flexible_links_[f];
+    const Link& link = scene_.links[l];
+    const double v = z[SpeedIndex(reduction_.group_of_mass[link.from])] -
+                     z[SpeedIndex(reduction_.group_of_mass[link.to])];
+    LinkTorqueCoefficients k{link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, 0.0};
+    const int backlash = backlash_of_flexible_[f];
+    if (backlash >= 0) {
+      k = CoefficientsOf(ModeOf(static_cast<LinkPhase>(phases[backlash])),
+                         link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, link.backlash_rad);
+    }
+    flexible_torque[f] = k.kpsi * z[f] + k.kv * v + k.k0;
+    link_torque[l] = flexible_torque[f];
+    link_twist[l] = z[f];
+  }
+  for (size_t i = 0; i < scene_.masses.size(); ++i) {
+    mass_speed[i] = z[SpeedIndex(reduction_.group_of_mass[i])];
+  }
+  if (flexible_link_count() == static_cast<int>(scene_.links.size())) return;
+  // Rigid links: the torque that holds the to-side part B of the merged mass on the group's
+  // acceleration α, m = Σ_B (J_i α − F_i), F_i all other torques on mass i.
+  const Eigen::VectorXd zdot =
+      system_matrix != nullptr ? Eigen::VectorXd(*system_matrix * z) : SystemMatrix(phases) * z;
+  std::vector<double> force(scene_.masses.size(), 0.0);
+  for (size_t s = 0; s < scene_.torques.size(); ++s) {
+    force[scene_.torques[s].mass] += z[nx_ + 1 + s];
+  }
+  if (has_drive()) force[scene_.drive->mass] += z[nx_ - 1];
+  for (int f = 0; f < flexible_link_count(); ++f) {
+    const Link& link = scene_.links[flexible_links_[f]];
+    force[link.from] -= flexible_torque[f];
+    force[link.to] += flexible_torque[f];
+  }
+  for (size_t l = 0; l < scene_.links.size(); ++l) {
+    if (!reduction_.link_rigid[l]) continue;
+    const double alpha = zdot[SpeedIndex(reduction_.group_of_mass[scene_.links[l].to])];
+    double m = 0.0;
+    for (int i : rigid_to_side_masses_[l]) m += scene_.masses[i].inertia_kg_m2 * alpha - force[i];
+    link_torque[l] = m;
+    link_twist[l] = m / scene_.links[l].stiffness_Nm_per_rad;
+  }
+}
+
+Eigen::VectorXd Model::StateScale() const {
+  Eigen::VectorXd scale(nx_);
+  const auto final_torque = StaticLinkTorques(scene_);
+  const Eigen::VectorXd z0 = InitialState();
+  const double speed = std::max(std::abs(scene_.initial_speed_rad_per_s), 1.0);
+  for (int f = 0; f < flexible_link_count(); ++f) {
+    const Link& link = scene_.links[flexible_links_[f]];
+    const double ja = group_inertia_[reduction_.group_of_mass[link.from]];
+    const double jb = group_inertia_[reduction_.group_of_mass[link.to]];
+    // The twist that balances the speed scale in the link's own mode (ψ' = Δω, Δω' ~ c ψ / J):
+    // with it the scaled system matrix has entries near that mode's frequency.
+    const double omega_link = std::sqrt(link.stiffness_Nm_per_rad * (1.0 / ja + 1.0 / jb));
+    const double twist = 0.5 * link.backlash_rad +
+                         std::abs(final_torque[flexible_links_[f]]) / link.stiffness_Nm_per_rad;
+    scale[f] = std::max({twist, std::abs(z0[f]), speed / omega_link});
+  }
+  for (int g = 0; g < group_count(); ++g) scale[SpeedIndex(g)] = speed;
+  if (has_drive()) {
+    const Drive& drive = *scene_.drive;
+    scale[nx_ - 2] = drive.ki > 0.0 ? drive.limit_Nm / drive.ki : 1.0;
+    scale[nx_ - 1] = drive.limit_Nm;
+  }
+  return scale;
+}
+
+std::string Model::DescribePhases(const Phases& phases) const {
+  static const char* kLinkNames[] = {"dead", "+free", "+sd", "+2c", "-free", "-sd", "-2c"};
+  static const char* kDriveNames[] = {"lin", "sat+", "sat-"};
+  std::string text;
+  for (int k = 0; k < backlash_link_count(); ++k) {
+    text += (text.empty() ? "" : " ") + scene_.links[flexible_links_[backlash_links_[k]]].name +
+            ":" + kLinkNames[static_cast<int>(phases[k])];
+  }
+  if (has_drive()) {
+    text += std::string(text.empty() ? "" : " ") + "drive:" +
+            kDriveNames[static_cast<int>(phases.back())];
+  }
+  return text;
+}
+
+}  // namespace millkit::driveline

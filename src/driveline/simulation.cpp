@@ -1,0 +1,83 @@
+#include "driveline/simulation.h"
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <sstream>
+
+#include "io/input_error.h"
+#include "io/toml_section.h"
+
+namespace millkit::driveline {
+
+void SimulationOptions::Validate() const {
+  if (!(rtol >= 1e-14 && rtol <= 1e-2)) {
+    throw InputError("option --rtol: must lie in [1e-14, 1e-2] (got " + FormatNumber(rtol) + ")");
+  }
+  if (atol && !(*atol > 0.0 && *atol <= 1.0)) {
+    throw InputError("option --atol: must lie in (0, 1], a fraction of each state's typical "
+                     "magnitude (got " + FormatNumber(*atol) + ")");
+  }
+  if (max_steps < 1) throw InputError("option max_steps: must be >= 1");
+  if (max_events < 0) throw InputError("option max_events: must be >= 0");
+}
+
+std::string SimulationSummary::BriefReport() const {
+  std::ostringstream s;
+  s << solver << ": " << (success ? "success" : "FAILED") << ", " << events << " events, "
+    << steps << " steps";
+  if (rhs_evaluations > 0) s << ", " << rhs_evaluations << " rhs";
+  s << ", " << wall_time_s * 1e3 << " ms, error estimate " << error_estimate;
+  if (!success) s << ": " << message;
+  return s.str();
+}
+
+SimulationResult Simulate(const Model& model, const SimulationOptions& options) {
+  options.Validate();
+  return options.solver == SolverKind::kExact ? SimulateExact(model, options)
+                                              : SimulateCvode(model, options);
+}
+
+std::vector<DynamicFactor> DynamicFactors(const Model& model, const SimulationResult& result) {
+  const Scene& scene = model.scene();
+  const std::vector<double> static_torque = StaticLinkTorques(scene);
+  double load_scale = 0.0;
+  for (const auto& source : scene.torques) load_scale += std::abs(source.ValueAt(scene.duration_s));
+  std::vector<DynamicFactor> factors;
+  for (size_t l = 0; l < scene.links.size(); ++l) {
+    DynamicFactor f;
+    f.link = scene.links[l].name;
+    f.static_torque_Nm = static_torque[l];
+    const auto column = result.link_torque_Nm.col(static_cast<int>(l));
+    Eigen::Index at = 0;
+    if (column.size() > 0) f.peak_torque_Nm = column.cwiseAbs().maxCoeff(&at);
+    f.peak_time_s = result.time_s.empty() ? 0.0 : result.time_s[at];
+    const bool defined = std::abs(f.static_torque_Nm) > 1e-12 * std::max(load_scale, 1e-300);
+    f.kd = defined ? f.peak_torque_Nm / std::abs(f.static_torque_Nm)
+                   : std::numeric_limits<double>::quiet_NaN();
+    factors.push_back(f);
+  }
+  return factors;
+}
+
+std::string FormatDynamicFactorTable(const std::vector<DynamicFactor>& factors) {
+  std::ostringstream s;
+  char line[256];
+  std::snprintf(line, sizeof(line), "%-20s %16s %10s %16s %8s\n", "link", "peak |m| N*m",
+                "at s", "static m_s N*m", "Kd");
+  s << line;
+  for (const auto& f : factors) {
+    char kd[32];
+    if (std::isnan(f.kd)) {
+      std::snprintf(kd, sizeof(kd), "%8s", "n/a");
+    } else {
+      std::snprintf(kd, sizeof(kd), "%8.3f", f.kd);
+    }
+    std::snprintf(line, sizeof(line), "%-20s %16.1f %10.5f %16.1f %s\n", f.link.c_str(),
+                  f.peak_torque_Nm, f.peak_time_s, f.static_torque_Nm, kd);
+    s << line;
+  }
+  return s.str();
+}
+
+}  // namespace millkit::driveline

@@ -1,0 +1,92 @@
+// Simulating a drive-line model: one interface, two solvers (SPEC.md §2.7, issue 2).
+//  - kExact: event-exact piecewise-linear solver. Within one set of phases z(t + τ) = exp(M τ) z(t)
+//    exactly; switching events are located on that exact solution (Newton with bisection safeguard
+//    to a few ulps of time). Propagators over one output step are cached per phase set.
+//  - kCvode: SUNDIALS CVODES (BDF, dense Newton, exact Jacobian), root functions on the watched
+//    switching surfaces, stop at each event, flip the phases and reinitialise; input breakpoints
+//    are stop times.
+// Both return the same sampled output and a Summary. A run that cannot finish (non-finite state,
+// too many events, events that do not advance time, CVODE failure) is reported in the Summary
+// (success = false, message), never by an exception.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "driveline/model.h"
+
+namespace millkit::driveline {
+
+enum class SolverKind { kExact, kCvode };
+
+struct SimulationOptions {
+  SolverKind solver = SolverKind::kExact;
+  // CVODE only: relative tolerance, and absolute tolerance as a fraction of each state's typical
+  // magnitude (Model::StateScale); atol = rtol when not given.
+  double rtol = 1e-8;
+  std::optional<double> atol;
+  long max_steps = 50'000'000;  // CVODE internal steps
+  long max_events = 1'000'000;
+  // Exact solver: estimate the roundoff of each cached step propagator (‖e^{Mh} − (e^{Mh/3})³‖,
+  // one extra exponential per phase set) and accumulate it over the steps taken.
+  bool estimate_error = true;
+  // Replaces Model::InitialState() (augmented state z; forcing part is set from the scene).
+  std::optional<Eigen::VectorXd> initial_state;
+
+  // Throws InputError naming the broken rule (e.g. rtol outside [1e-14, 1e-2]).
+  void Validate() const;
+};
+
+struct SimulationSummary {
+  std::string solver;
+  bool success = false;
+  std::string message;  // why it failed, empty on success
+  long events = 0;      // phase switches
+  long steps = 0;       // exact: propagations; CVODE: internal steps
+  long rhs_evaluations = 0;
+  long jacobian_evaluations = 0;
+  long phase_sets = 0;  // distinct phase sets visited (exact: propagators built)
+  double wall_time_s = 0.0;
+  // Estimated max error of the states, relative to their typical magnitude. Exact: the step
+  // propagators' roundoff defects summed over the steps taken (a linear-growth bound); CVODE: the
+  // tolerance it was asked for (CVODE does not bound its global error).
+  double error_estimate = 0.0;
+  std::vector<std::string> reduction;  // what the band-limited reduction merged
+  std::vector<double> event_times_s;   // time of every phase switch, in order
+
+  std::string BriefReport() const;
+};
+
+// Samples in rows, one row per output time (row-major, so a sample is contiguous).
+using SampleMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+struct SimulationResult {
+  std::vector<double> time_s;
+  SampleMatrix link_torque_Nm;        // samples × scene links
+  SampleMatrix mass_speed_rad_per_s;  // samples × scene masses
+  SampleMatrix link_twist_rad;        // samples × scene links
+  SimulationSummary summary;
+};
+
+SimulationResult Simulate(const Model& model, const SimulationOptions& options);
+SimulationResult SimulateExact(const Model& model, const SimulationOptions& options);
+SimulationResult SimulateCvode(const Model& model, const SimulationOptions& options);
+
+// Dynamic factor of each scene link (SPEC §2.5): Kd = max_t |m(t)| / |m_s| over the samples, m_s
+// the static torque under the final loads. kd is NaN when |m_s| is zero to roundoff (Kd undefined).
+struct DynamicFactor {
+  std::string link;
+  double peak_torque_Nm = 0.0;
+  double peak_time_s = 0.0;
+  double static_torque_Nm = 0.0;
+  double kd = 0.0;
+};
+std::vector<DynamicFactor> DynamicFactors(const Model& model, const SimulationResult& result);
+
+// The table printed by `millkit simulate`.
+std::string FormatDynamicFactorTable(const std::vector<DynamicFactor>& factors);
+
+}  // namespace millkit::driveline
