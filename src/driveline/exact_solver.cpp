@@ -56,6 +56,7 @@ Eigen::VectorXd AugmentedScale(const Model& model) {
 // similarity D⁻¹ M D has a norm near the fastest mode's frequency, where the raw M mixes units
 // (N·m/rad over kg·m² next to 1) and makes exp() lose digits in needless squarings.
 struct PhaseData {
+  Eigen::MatrixXd system;  // M itself, for the outputs of rigid links
   Eigen::MatrixXd m;     // D⁻¹ M D
   Eigen::MatrixXd step;  // exp(M h), built on first use
   bool has_step = false;
@@ -95,7 +96,7 @@ class ExactIntegrator {
   // Root of side·g over [lo, hi] (side·g(lo) >= 0 > side·g(hi)) for watched surface w.
   double Refine(const PhaseData& data, int w, double t, const Eigen::VectorXd& z0, double lo,
                 double hi, double guess, Eigen::VectorXd* z_root);
-  void Record(int sample, const Phases& phases, const Eigen::VectorXd& y);
+  void Record(int sample, const Phases& phases, const PhaseData& data, const Eigen::VectorXd& y);
   // Builds exp(M h) for a phase set, with its roundoff defect ‖exp(Mh) − exp(Mh/3)³‖ in the
   // scaled norm (the error estimate accumulates it per step).
   void BuildStep(PhaseData* data);
@@ -113,7 +114,8 @@ PhaseData& ExactIntegrator::Data(const Phases& phases) {
   auto it = cache_.find(phases);
   if (it != cache_.end()) return it->second;
   PhaseData data;
-  data.m = scale_.cwiseInverse().asDiagonal() * model_.SystemMatrix(phases) * scale_.asDiagonal();
+  data.system = model_.SystemMatrix(phases);
+  data.m = scale_.cwiseInverse().asDiagonal() * data.system * scale_.asDiagonal();
   data.norm1 = data.m.cwiseAbs().colwise().sum().maxCoeff();
   data.watched = model_.Watched(phases);
   data.rows.resize(static_cast<int>(data.watched.size()), model_.augmented_size());
@@ -272,10 +274,11 @@ bool ExactIntegrator::FindEvent(const PhaseData& data, double t, const Eigen::Ve
   return true;
 }
 
-void ExactIntegrator::Record(int sample, const Phases& phases, const Eigen::VectorXd& y) {
+void ExactIntegrator::Record(int sample, const Phases& phases, const PhaseData& data,
+                             const Eigen::VectorXd& y) {
   model_.Outputs(phases, scale_.cwiseProduct(y), result_.link_torque_Nm.row(sample).data(),
                  result_.mass_speed_rad_per_s.row(sample).data(),
-                 result_.link_twist_rad.row(sample).data());
+                 result_.link_twist_rad.row(sample).data(), &data.system);
 }
 
 void ExactIntegrator::BuildStep(PhaseData* data) {
@@ -318,7 +321,7 @@ SimulationResult ExactIntegrator::Run() {
   Eigen::VectorXd z1(z.size()), z_event(z.size());
   SurfaceValues start, end;  // watched surfaces at the step's start and end
   bool start_valid = false;
-  Record(0, phases, z);
+  Record(0, phases, Data(phases), z);
 
   for (int k = 1; k < samples;) {
     PhaseData& data = Data(phases);
@@ -397,7 +400,7 @@ SimulationResult ExactIntegrator::Run() {
     }
     if (at_grid) {
       on_grid = true;
-      Record(k, phases, z);
+      Record(k, phases, data, z);
       ++k;
     } else {
       on_grid = false;

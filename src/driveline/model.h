@@ -49,7 +49,9 @@ struct Reduction {
 };
 
 // Makes rigid every link with b = 0 whose two-mass frequency sqrt(c (1/J_a + 1/J_b))/2π is at
-// least kBandFactor × band, highest first, merging masses as it goes. Identity without a band.
+// least kBandFactor × max(band, fastest mode of the model without it), highest first, merging
+// masses as it goes. The second term keeps links whose mode an impact of a kept gap would excite.
+// Identity without a band.
 inline constexpr double kBandFactor = 10.0;
 Reduction ReduceToBand(const Scene& scene);
 
