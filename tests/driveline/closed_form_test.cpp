@@ -13,7 +13,6 @@ using Catch::Matchers::WithinAbs;
 using Catch::Matchers::WithinRel;
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 // The exact solver is exact up to roundoff: closed forms hold to this fraction of the peak.
 constexpr double kExactTolerance = 1e-9;
 

@@ -13,10 +13,6 @@ using Catch::Matchers::Contains;
 using Catch::Matchers::WithinAbs;
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
-double RelativeDifference(const SampleMatrix& a, const SampleMatrix& b) {
-  return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
-}
 Scene FiveMass() {
   return LoadScene(millkit::testing::SourcePath("datasets/scenes/mill5_bite.toml"));
 }

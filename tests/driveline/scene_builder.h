@@ -3,9 +3,16 @@
 
 #include <string>
 
-#include "driveline/scene.h"
+#include "driveline/simulation.h"
 
 namespace millkit::driveline::testing {
+
+inline constexpr double kPi = 3.14159265358979323846;
+
+// max |a − b| / max |b|: disagreement relative to the reference's peak.
+inline double RelativeDifference(const SampleMatrix& a, const SampleMatrix& b) {
+  return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
+}
 
 // Two masses joined by one link; no torque sources.
 inline Scene TwoMassScene(double j1, double j2, double c, double d, double b, double duration,

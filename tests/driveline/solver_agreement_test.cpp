@@ -2,14 +2,13 @@
 #include <catch2/catch.hpp>
 
 #include "driveline/simulation.h"
+#include "scene_builder.h"
 #include "support/run_cli.h"
 
 using namespace millkit::driveline;
+using millkit::driveline::testing::RelativeDifference;
 
 namespace {
-double RelativeDifference(const SampleMatrix& a, const SampleMatrix& b) {
-  return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
-}
 SimulationResult RunCvode(const Model& model, double rtol) {
   SimulationOptions options;
   options.solver = SolverKind::kCvode;
