@@ -3,11 +3,13 @@
 // the Jacobian is A exactly. Root functions are the watched switching surfaces of the current
 // phases; at a root the integrator stops, the phases flip (the crossed surface's new side is the
 // root's direction) and CVODE is reinitialised. Input breakpoints are stop times.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <exception>
 #include <limits>
 
+#include "driveline/output_recorder.h"
 #include "driveline/simulation.h"
 #include "numerics/sundials_handles.h"
 
@@ -82,6 +84,7 @@ std::string FlagName(int flag) {
 }  // namespace
 
 SimulationResult SimulateCvode(const Model& model, const SimulationOptions& options) {
+  options.Validate(model.scene());
   const auto started = std::chrono::steady_clock::now();
   const Scene& scene = model.scene();
   SimulationResult result;
@@ -89,14 +92,12 @@ SimulationResult SimulateCvode(const Model& model, const SimulationOptions& opti
   summary.solver = "cvode";
   summary.reduction = model.reduction().report;
   summary.error_estimate = options.rtol;
-  const int samples = scene.SampleCount();
+  OutputRecorder recorder(model, options, OutputTimes(scene, options), &result);
+  const std::vector<double>& times = recorder.times();
+  const int samples = recorder.size();
+  // Time scale for "events that do not advance time".
   const double h = 1.0 / scene.sample_rate_Hz;
   const int nx = model.state_size(), nw = model.forcing_size();
-  result.time_s.resize(samples);
-  for (int k = 0; k < samples; ++k) result.time_s[k] = k * h;
-  result.link_torque_Nm.setZero(samples, static_cast<int>(scene.links.size()));
-  result.link_twist_rad.setZero(samples, static_cast<int>(scene.links.size()));
-  result.mass_speed_rad_per_s.setZero(samples, static_cast<int>(scene.masses.size()));
 
   Eigen::VectorXd z = model.InitialState();
   if (options.initial_state) z.head(nx) = options.initial_state->head(nx);
@@ -119,11 +120,13 @@ SimulationResult SimulateCvode(const Model& model, const SimulationOptions& opti
   auto record = [&](int sample, double t, const Eigen::VectorXd& x) {
     Eigen::VectorXd state(model.augmented_size());
     state << x, problem.Forcing(t), problem.slope;
-    model.Outputs(phases, state, result.link_torque_Nm.row(sample).data(),
-                  result.mass_speed_rad_per_s.row(sample).data(),
-                  result.link_twist_rad.row(sample).data());
+    recorder.Record(sample, phases, state);
   };
-  record(0, 0.0, z.head(nx));
+  int k = 0;
+  if (times.front() == 0.0) {
+    record(0, 0.0, z.head(nx));
+    k = 1;
+  }
   configure(phases);
 
   SundialsContext context;
@@ -140,9 +143,11 @@ SimulationResult SimulateCvode(const Model& model, const SimulationOptions& opti
 
   const std::vector<double> breakpoints = scene.InputBreakpoints();
   size_t next_breakpoint = 0;
-  const double t_final = (samples - 1) * h;
+  // The run ends at the last output time: no stop at a breakpoint after it.
+  const double t_final = times.back();
   auto stop_time = [&] {
-    return next_breakpoint < breakpoints.size() ? breakpoints[next_breakpoint] : t_final;
+    return next_breakpoint < breakpoints.size() ? std::min(breakpoints[next_breakpoint], t_final)
+                                                : t_final;
   };
   auto check = [&](int flag, const char* call) {
     if (flag < 0) throw std::runtime_error(std::string(call) + " failed: " + FlagName(flag));
@@ -184,8 +189,8 @@ SimulationResult SimulateCvode(const Model& model, const SimulationOptions& opti
     int stalled = 0;
     std::vector<int> roots_found;
     double t = 0.0;
-    for (int k = 1; k < samples && summary.message.empty();) {
-      const double tout = k * h;
+    while (k < samples && summary.message.empty()) {
+      const double tout = times[k];
       if (tout - t <= 4 * kEps * std::max(1.0, tout)) {
         // An event or a breakpoint landed on this sample time: the state is already there.
         record(k, tout, y_data);

@@ -9,6 +9,7 @@
 // known exactly along the step, so its root is found by Newton iteration on the exact solution,
 // started from the cubic Hermite interpolant of g and safeguarded by bisection. A surface that
 // dips across and back within a step is caught from its end derivatives (a minimum inside).
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -16,6 +17,7 @@
 
 #include <unsupported/Eigen/MatrixFunctions>
 
+#include "driveline/output_recorder.h"
 #include "driveline/simulation.h"
 #include "numerics/expm_action.h"
 
@@ -96,7 +98,8 @@ class ExactIntegrator {
   // Root of side·g over [lo, hi] (side·g(lo) >= 0 > side·g(hi)) for watched surface w.
   double Refine(const PhaseData& data, int w, double t, const Eigen::VectorXd& z0, double lo,
                 double hi, double guess, Eigen::VectorXd* z_root);
-  void Record(int sample, const Phases& phases, const PhaseData& data, const Eigen::VectorXd& y);
+  void Record(OutputRecorder* recorder, int sample, const Phases& phases, const PhaseData& data,
+              const Eigen::VectorXd& y);
   // Builds exp(M h) for a phase set, with its roundoff defect ‖exp(Mh) − exp(Mh/3)³‖ in the
   // scaled norm (the error estimate accumulates it per step).
   void BuildStep(PhaseData* data);
@@ -274,11 +277,9 @@ bool ExactIntegrator::FindEvent(const PhaseData& data, double t, const Eigen::Ve
   return true;
 }
 
-void ExactIntegrator::Record(int sample, const Phases& phases, const PhaseData& data,
-                             const Eigen::VectorXd& y) {
-  model_.Outputs(phases, scale_.cwiseProduct(y), result_.link_torque_Nm.row(sample).data(),
-                 result_.mass_speed_rad_per_s.row(sample).data(),
-                 result_.link_twist_rad.row(sample).data(), &data.system);
+void ExactIntegrator::Record(OutputRecorder* recorder, int sample, const Phases& phases,
+                             const PhaseData& data, const Eigen::VectorXd& y) {
+  recorder->Record(sample, phases, scale_.cwiseProduct(y), &data.system);
 }
 
 void ExactIntegrator::BuildStep(PhaseData* data) {
@@ -292,20 +293,28 @@ void ExactIntegrator::BuildStep(PhaseData* data) {
   data->defect = (data->step - third * third * third).cwiseAbs().rowwise().sum().maxCoeff();
 }
 
+// The step whose propagator is cached per phase set: the scene's sample interval, or for given
+// output times the median gap (an oscillogram's sampling interval).
+double CachedStep(const Scene& scene, const SimulationOptions& options,
+                  const std::vector<double>& times) {
+  if (!options.output_times || times.size() < 2) return 1.0 / scene.sample_rate_Hz;
+  std::vector<double> gaps(times.size() - 1);
+  for (size_t k = 1; k < times.size(); ++k) gaps[k - 1] = times[k] - times[k - 1];
+  std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
+  return gaps[gaps.size() / 2];
+}
+
 SimulationResult ExactIntegrator::Run() {
   const auto started = std::chrono::steady_clock::now();
   const Scene& scene = model_.scene();
   SimulationSummary& summary = result_.summary;
   summary.solver = "exact";
   summary.reduction = model_.reduction().report;
-  const int samples = scene.SampleCount();
-  h_ = 1.0 / scene.sample_rate_Hz;
+  OutputRecorder recorder(model_, options_, OutputTimes(scene, options_), &result_);
+  const std::vector<double>& times = recorder.times();
+  const int samples = recorder.size();
+  h_ = CachedStep(scene, options_, times);
   scale_ = AugmentedScale(model_);
-  result_.time_s.resize(samples);
-  for (int k = 0; k < samples; ++k) result_.time_s[k] = k * h_;
-  result_.link_torque_Nm.setZero(samples, static_cast<int>(scene.links.size()));
-  result_.link_twist_rad.setZero(samples, static_cast<int>(scene.links.size()));
-  result_.mass_speed_rad_per_s.setZero(samples, static_cast<int>(scene.masses.size()));
 
   Eigen::VectorXd z0 = model_.InitialState();
   if (options_.initial_state) {
@@ -316,16 +325,22 @@ SimulationResult ExactIntegrator::Run() {
   const std::vector<double> breakpoints = scene.InputBreakpoints();
   size_t next_breakpoint = 0;
   double t = 0.0;
-  bool on_grid = true;  // t is exactly the previous sample time
+  bool on_grid = true;  // t is exactly the previous output time
   long stalled = 0;
   Eigen::VectorXd z1(z.size()), z_event(z.size());
   SurfaceValues start, end;  // watched surfaces at the step's start and end
   bool start_valid = false;
-  Record(0, phases, Data(phases), z);
+  int k = 0;
+  if (times.front() == 0.0) {
+    Record(&recorder, 0, phases, Data(phases), z);
+    k = 1;
+  } else {
+    on_grid = false;
+  }
 
-  for (int k = 1; k < samples;) {
+  while (k < samples) {
     PhaseData& data = Data(phases);
-    const double t_grid = k * h_;
+    const double t_grid = times[k];
     double target = t_grid;
     bool at_breakpoint = false;
     if (next_breakpoint < breakpoints.size() &&
@@ -336,7 +351,11 @@ SimulationResult ExactIntegrator::Run() {
     const bool at_grid = target >= t_grid * (1.0 - 4 * kEps);
     if (at_grid) target = t_grid;
     const double tau = target - t;
-    if (on_grid && at_grid) {
+    // The cached exp(M h) serves a step between output times whose gap is h to roundoff of the
+    // times themselves (the state lands a few ulps of t off: as exact as t can be stated).
+    const bool cached_step =
+        on_grid && at_grid && std::abs(tau - h_) <= 8 * kEps * std::max(std::abs(t_grid), h_);
+    if (cached_step) {
       if (!data.has_step) BuildStep(&data);
       z1.noalias() = data.step * z;
       summary.error_estimate += data.defect;
@@ -400,7 +419,7 @@ SimulationResult ExactIntegrator::Run() {
     }
     if (at_grid) {
       on_grid = true;
-      Record(k, phases, data, z);
+      Record(&recorder, k, phases, data, z);
       ++k;
     } else {
       on_grid = false;
@@ -415,6 +434,7 @@ SimulationResult ExactIntegrator::Run() {
 }  // namespace
 
 SimulationResult SimulateExact(const Model& model, const SimulationOptions& options) {
+  options.Validate(model.scene());
   ExactIntegrator integrator(model, options);
   return integrator.Run();
 }

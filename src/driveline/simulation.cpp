@@ -20,6 +20,42 @@ void SimulationOptions::Validate() const {
   }
   if (max_steps < 1) throw InputError("option max_steps: must be >= 1");
   if (max_events < 0) throw InputError("option max_events: must be >= 0");
+  if (!output_times) return;
+  const std::vector<double>& times = *output_times;
+  if (times.empty()) throw InputError("option output_times: must not be empty");
+  for (size_t i = 0; i < times.size(); ++i) {
+    const std::string at = "option output_times[" + std::to_string(i) + "] = ";
+    if (!std::isfinite(times[i])) {
+      throw InputError(at + FormatNumber(times[i]) + ": must be finite");
+    }
+    if (i == 0 && times[0] < 0.0) {
+      throw InputError(at + FormatNumber(times[0]) + ": the first output time must be >= 0");
+    }
+    if (i > 0 && !(times[i] > times[i - 1])) {
+      throw InputError(at + FormatNumber(times[i]) +
+                       ": output times must be strictly increasing (output_times[" +
+                       std::to_string(i - 1) + "] = " + FormatNumber(times[i - 1]) + ")");
+    }
+  }
+}
+
+void SimulationOptions::Validate(const Scene& scene) const {
+  Validate();
+  if (output_times && output_times->back() > scene.duration_s) {
+    throw InputError("option output_times: the last output time " +
+                     FormatNumber(output_times->back()) + " s must be <= the scene duration " +
+                     FormatNumber(scene.duration_s) + " s ([scene] duration of " +
+                     (scene.file.empty() ? std::string("<scene>") : scene.file) + ")");
+  }
+}
+
+std::vector<double> OutputTimes(const Scene& scene, const SimulationOptions& options) {
+  if (options.output_times) return *options.output_times;
+  const int samples = scene.SampleCount();
+  const double h = 1.0 / scene.sample_rate_Hz;
+  std::vector<double> times(samples);
+  for (int k = 0; k < samples; ++k) times[k] = k * h;
+  return times;
 }
 
 std::string SimulationSummary::BriefReport() const {
@@ -33,7 +69,6 @@ std::string SimulationSummary::BriefReport() const {
 }
 
 SimulationResult Simulate(const Model& model, const SimulationOptions& options) {
-  options.Validate();
   return options.solver == SolverKind::kExact ? SimulateExact(model, options)
                                               : SimulateCvode(model, options);
 }
@@ -48,10 +83,15 @@ std::vector<DynamicFactor> DynamicFactors(const Model& model, const SimulationRe
     DynamicFactor f;
     f.link = scene.links[l].name;
     f.static_torque_Nm = static_torque[l];
-    const auto column = result.link_torque_Nm.col(static_cast<int>(l));
-    Eigen::Index at = 0;
-    if (column.size() > 0) f.peak_torque_Nm = column.cwiseAbs().maxCoeff(&at);
-    f.peak_time_s = result.time_s.empty() ? 0.0 : result.time_s[at];
+    if (result.peak_abs_torque_Nm.size() == scene.links.size()) {
+      f.peak_torque_Nm = result.peak_abs_torque_Nm[l];
+      f.peak_time_s = result.peak_time_s[l];
+    } else {
+      const auto column = result.link_torque_Nm.col(static_cast<int>(l));
+      Eigen::Index at = 0;
+      if (column.size() > 0) f.peak_torque_Nm = column.cwiseAbs().maxCoeff(&at);
+      f.peak_time_s = result.time_s.empty() ? 0.0 : result.time_s[at];
+    }
     const bool defined = std::abs(f.static_torque_Nm) > 1e-12 * std::max(load_scale, 1e-300);
     f.kd = defined ? f.peak_torque_Nm / std::abs(f.static_torque_Nm)
                    : std::numeric_limits<double>::quiet_NaN();

@@ -35,9 +35,19 @@ struct SimulationOptions {
   bool estimate_error = true;
   // Replaces Model::InitialState() (augmented state z; forcing part is set from the scene).
   std::optional<Eigen::VectorXd> initial_state;
+  // Output times (s) replacing the scene's sample grid, e.g. the time column of an oscillogram
+  // recorded at 1–10 kHz: non-empty, finite, strictly increasing, first >= 0, last <=
+  // scene.duration_s. The run starts at t = 0 and ends at the last output time (no event after
+  // it is simulated); result.time_s is these times.
+  std::optional<std::vector<double>> output_times;
+  // false: the sample matrices and time_s of the result stay empty and only the peak fields are
+  // filled (the fast path for sweeps and optimisation that need only Kd).
+  bool keep_samples = true;
 
-  // Throws InputError naming the broken rule (e.g. rtol outside [1e-14, 1e-2]).
+  // Throws InputError naming the broken rule (e.g. rtol outside [1e-14, 1e-2]). Without a scene
+  // the rule last output time <= duration is not checked; Simulate* check it.
   void Validate() const;
+  void Validate(const Scene& scene) const;
 };
 
 struct SimulationSummary {
@@ -64,19 +74,31 @@ struct SimulationSummary {
 using SampleMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 struct SimulationResult {
+  // Empty when options.keep_samples is false.
   std::vector<double> time_s;
   SampleMatrix link_torque_Nm;        // samples × scene links
   SampleMatrix mass_speed_rad_per_s;  // samples × scene masses
   SampleMatrix link_twist_rad;        // samples × scene links
+  // Always filled, one per scene link: max over the output samples of |link torque| (N·m) and the
+  // first output time where it is reached (bit-identical with and without keep_samples).
+  std::vector<double> peak_abs_torque_Nm;
+  std::vector<double> peak_time_s;
   SimulationSummary summary;
 };
 
+// The times a run samples: options.output_times when given, else the scene grid k / sample_rate,
+// k = 0 … SampleCount() − 1.
+std::vector<double> OutputTimes(const Scene& scene, const SimulationOptions& options);
+
+// Each validates the options against the model's scene first (throws InputError).
 SimulationResult Simulate(const Model& model, const SimulationOptions& options);
 SimulationResult SimulateExact(const Model& model, const SimulationOptions& options);
 SimulationResult SimulateCvode(const Model& model, const SimulationOptions& options);
 
 // Dynamic factor of each scene link (SPEC §2.5): Kd = max_t |m(t)| / |m_s| over the samples, m_s
 // the static torque under the final loads. kd is NaN when |m_s| is zero to roundoff (Kd undefined).
+// Reads result.peak_abs_torque_Nm / peak_time_s (so it works without kept samples); a result
+// without peak fields (built by hand) falls back to the link_torque_Nm columns.
 struct DynamicFactor {
   std::string link;
   double peak_torque_Nm = 0.0;
