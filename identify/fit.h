@@ -1,0 +1,133 @@
+// Identification of drive-line parameters from oscillograms (SPEC.md §4, issue 3).
+//
+// The model of channel c at record time t_k is  y_ck ≈ g_c · m_c(t_k; p) + o_c, with m_c the
+// simulated torque of the channel's link (exact solver, sampled at the record's own times: the
+// model is resampled, never the data), p the free scene parameters (damping, backlash, stiffness,
+// inertia, gap_position, bite_time, ...), g_c and o_c the channel's gain and offset. Ceres
+// minimises Σ_c Σ_k w_c² (g_c m_ck + o_c − y_ck)² over the window.
+//
+// Derivatives: ∂m/∂p by central differences on the exact solver (normalised step 1e-6 of the
+// bound width; the solver's ~1e-12 relative roundoff makes the derivative error ~1e-6 relative,
+// the truncation error ~1e-12), second-order one-sided at a bound; gain and offset analytic.
+// Backlash moves impact times, but with the `limited` law the sampled torque is continuous in p,
+// so the differences are smooth except where an event crosses a sample time.
+//
+// Non-convexity: a continuation over the window length (the first stage ends shortly after the
+// response starts, each next stage doubles the span), a coarse Latin-hypercube scan over the
+// parameters marked `scan` (gaps, bite time) on the first stage, with gains and offsets solved
+// linearly at each point, then Ceres (Levenberg–Marquardt) through the stages from the best
+// `starts` points; the best minimum wins, and every minimum is reported. Weights: a channel without a weight is first weighted by 1/peak, then by 1/noise
+// estimated from its residual, and the fit is polished with those weights.
+//
+// Uncertainty: ceres::Covariance (dense SVD) of all fitted quantities, scaled by the residual
+// variance 2·cost/(N − P) (≈ 1 with noise weights). A parameter is flagged not identifiable when
+// the column-scaled Jacobian is rank-deficient in its direction (reciprocal condition below
+// kRankTolerance) or its standard error exceeds kUnidentifiableFraction of its bound width; its
+// value and standard error are then not to be trusted and the JSON says so.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "driveline/scene.h"
+#include "identify/fit_config.h"
+#include "identify/oscillogram.h"
+
+namespace millkit::identify {
+
+inline constexpr double kRankTolerance = 1e-7;
+inline constexpr double kUnidentifiableFraction = 0.25;
+// Window-length continuation: stages end at onset + span/2^j, j = kContinuationStages − 1 … 0.
+inline constexpr int kContinuationStages = 5;
+// Iteration cap of a continuation stage before the last: parameters the short window cannot see
+// make Levenberg–Marquardt crawl, and the stage only has to reach the right basin.
+inline constexpr int kStageIterations = 30;
+// Model samples per record step where a channel models the recorder's low-pass filter.
+inline constexpr int kFilterOversample = 4;
+
+struct FitOptions {
+  int max_iterations = 100;
+  double derivative_step = 1e-6;  // normalised (fraction of the bound width)
+  bool polish_with_noise_weights = true;
+  int threads = 1;                // Ceres threads (the simulations themselves are serial)
+  void Validate() const;
+};
+
+struct ParameterEstimate {
+  std::string name;
+  std::string unit;
+  double value = 0.0;
+  double standard_error = 0.0;
+  double start = 0.0;
+  double lower = 0.0;
+  double upper = 0.0;
+  bool at_bound = false;
+  bool identifiable = true;
+  std::string why_not;  // when not identifiable
+};
+
+struct ChannelEstimate {
+  std::string column;
+  std::string link;
+  double gain = 1.0;
+  double gain_se = 0.0;
+  double offset = 0.0;  // N·m
+  double offset_se = 0.0;
+  double weight = 0.0;  // 1/N·m, as used in the final fit
+  double rms_residual = 0.0;  // N·m
+  int samples = 0;
+  std::vector<double> fitted;   // g·m + o at the window samples
+  std::vector<double> measured;
+};
+
+struct LocalMinimum {
+  double cost = 0.0;
+  std::vector<double> values;  // free scene parameters, physical units
+  int iterations = 0;
+  bool converged = false;
+};
+
+struct FitSummary {
+  bool success = false;
+  std::string message;
+  std::string ceres_brief;   // ceres::Solver::Summary::BriefReport() of the final fit
+  std::string termination;
+  int iterations = 0;
+  int scan_points = 0;
+  int starts = 0;
+  int starts_at_best = 0;    // local fits reaching the best cost to 1e-6
+  long simulations = 0;
+  double wall_time_s = 0.0;
+  double cost = 0.0;         // ½ Σ weighted residual²
+  int residuals = 0;
+  int fitted_quantities = 0;
+  double noise_scale = 1.0;  // sqrt(2 cost / (N − P))
+  double reciprocal_condition = 0.0;  // of the column-scaled Jacobian
+  std::string BriefReport() const;
+};
+
+struct FitResult {
+  std::vector<ParameterEstimate> parameters;
+  std::vector<ChannelEstimate> channels;
+  std::vector<std::string> quantity_names;  // parameters, then gain.<col>, offset.<col>
+  Eigen::MatrixXd correlation;              // over quantity_names
+  std::vector<double> window_time_s;
+  std::vector<LocalMinimum> minima;
+  FitSummary summary;
+};
+
+// Fits `config` to `record` starting from `scene` (with [set] values already applied).
+// Throws InputError for bad options; a fit that fails (every start fails to simulate, Ceres
+// reports failure) has summary.success = false and a message.
+FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const FitConfig& config,
+              const FitOptions& options);
+
+// Simulated torque of each channel's link at the record times in [begin, end); the scene's
+// parameters as given. Returns false with a reason when the scene is invalid or the solver fails.
+bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record,
+                      const std::vector<ChannelSpec>& channels, int begin, int end,
+                      std::vector<Eigen::VectorXd>* torques, std::string* why);
+
+}  // namespace millkit::identify

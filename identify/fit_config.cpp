@@ -1,0 +1,225 @@
+#include "identify/fit_config.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "io/input_error.h"
+#include "io/toml_section.h"
+
+namespace millkit::identify {
+namespace {
+
+using driveline::SceneParameter;
+
+constexpr double kDefaultBiteHalfRange_s = 0.02;
+
+std::string Describe(const FreeParameter& p) {
+  return "[" + FormatNumber(p.lower) + ", " + FormatNumber(p.upper) + "]";
+}
+
+// Bounds must be ordered, inside the physical range, and hold the start.
+void CheckFreeParameter(const FreeParameter& p, const std::string& where) {
+  if (!(std::isfinite(p.lower) && std::isfinite(p.upper) && std::isfinite(p.start))) {
+    throw InputError(where + ": '" + p.parameter.name + "': start and bounds must be finite");
+  }
+  if (!(p.lower < p.upper)) {
+    throw InputError(where + ": '" + p.parameter.name + "': lower bound " +
+                     FormatNumber(p.lower) + " must be below upper bound " + FormatNumber(p.upper));
+  }
+  if (p.start < p.lower || p.start > p.upper) {
+    throw InputError(where + ": '" + p.parameter.name + "': start " + FormatNumber(p.start) +
+                     " lies outside its bounds " + Describe(p));
+  }
+  const auto range = driveline::PhysicalRange(p.parameter.kind);
+  const bool below = range.lower_inclusive ? p.lower < range.lower : p.lower <= range.lower;
+  if (below || p.upper > range.upper) {
+    throw InputError(where + ": '" + p.parameter.name + "': bounds " + Describe(p) +
+                     " leave the physical range of " + p.parameter.name + " (" +
+                     (range.lower_inclusive ? ">= " : "> ") + FormatNumber(range.lower) +
+                     (std::isfinite(range.upper) ? ", <= " + FormatNumber(range.upper) : "") + ")");
+  }
+}
+
+bool ScannedByDefault(SceneParameter::Kind kind) {
+  return kind == SceneParameter::Kind::kBacklash || kind == SceneParameter::Kind::kBiteTime;
+}
+
+}  // namespace
+
+void ValidateFitConfig(const FitConfig& config, const Oscillogram& record,
+                       const std::string& where) {
+  if (config.free.empty()) throw InputError(where + ": no free parameter to fit");
+  if (config.channels.empty()) throw InputError(where + ": no channel to fit");
+  for (size_t i = 0; i < config.free.size(); ++i) {
+    CheckFreeParameter(config.free[i], where);
+    for (size_t j = 0; j < i; ++j) {
+      if (config.free[j].parameter.name == config.free[i].parameter.name) {
+        throw InputError(where + ": parameter '" + config.free[i].parameter.name +
+                         "' is listed twice");
+      }
+    }
+  }
+  for (size_t i = 0; i < config.channels.size(); ++i) {
+    const auto& c = config.channels[i];
+    if (c.record_channel < 0) {
+      throw InputError(where + ": channel '" + c.column + "' is missing from the record " +
+                       record.source);
+    }
+    if (c.link_index < 0) throw InputError(where + ": channel '" + c.column + "': no such link");
+    if (c.weight && !(*c.weight > 0.0 && std::isfinite(*c.weight))) {
+      throw InputError(where + ": channel '" + c.column + "': weight must be > 0");
+    }
+    for (size_t j = 0; j < i; ++j) {
+      if (config.channels[j].column == c.column) {
+        throw InputError(where + ": channel '" + c.column + "' is listed twice");
+      }
+    }
+  }
+  const double first = record.time_s.front();
+  const double last = record.time_s.back();
+  if (!(config.window_start_s < config.window_end_s) || config.window_start_s < first ||
+      config.window_end_s > last) {
+    throw InputError(where + ": window [" + FormatNumber(config.window_start_s) + ", " +
+                     FormatNumber(config.window_end_s) + "] s must be an interval inside the " +
+                     "record's time span [" + FormatNumber(first) + ", " + FormatNumber(last) +
+                     "] s of " + record.source);
+  }
+  const auto [begin, end] = record.WindowRange(config.window_start_s, config.window_end_s);
+  if (end - begin < kMinRecordSamples) {
+    throw InputError(where + ": window holds " + std::to_string(end - begin) +
+                     " samples; a fit needs at least " + std::to_string(kMinRecordSamples));
+  }
+  if (config.scan_points < 0) throw InputError(where + ": scan must be >= 0");
+  if (config.starts < 1) throw InputError(where + ": starts must be >= 1");
+}
+
+FitConfig LoadFitConfig(const std::string& path, const Oscillogram& record,
+                        driveline::Scene* scene) {
+  const toml::table root = LoadTomlFile(path);
+  const TomlSection top(root, path, "");
+  top.RequireOnlyKeys({"fit", "set", "free", "channel"});
+  FitConfig config;
+  config.window_start_s = record.time_s.front();
+  config.window_end_s = record.time_s.back();
+  if (const auto fit = top.OptionalTable("fit")) {
+    fit->RequireOnlyKeys({"window", "scan", "starts", "seed"});
+    if (fit->Has("window")) {
+      const auto window = fit->NumberArray("window");
+      if (window.size() != 2) fit->Fail("window", "must be [start, end] in s");
+      config.window_start_s = window[0];
+      config.window_end_s = window[1];
+      if (!(window[0] < window[1]) || window[0] < record.time_s.front() ||
+          window[1] > record.time_s.back()) {
+        fit->Fail("window", "must be an interval inside the record's time span [" +
+                                FormatNumber(record.time_s.front()) + ", " +
+                                FormatNumber(record.time_s.back()) + "] s of " + record.source);
+      }
+    }
+    config.scan_points = static_cast<int>(fit->NonNegative("scan", fit->Number("scan", 32)));
+    config.starts = static_cast<int>(fit->Number("starts", 2));
+    if (config.starts < 1) fit->Fail("starts", "must be >= 1");
+    config.seed = static_cast<unsigned>(fit->NonNegative("seed", fit->Number("seed", 1)));
+  }
+  if (const auto set = top.OptionalTable("set")) {
+    for (const auto& [key, node] : set->table()) {
+      const std::string name(key.str());
+      const auto parameter = driveline::ParseSceneParameter(*scene, name, set->KeyContext(name));
+      const double value = *set->OptionalNumber(name);
+      const auto range = driveline::PhysicalRange(parameter.kind);
+      if (value < range.lower || value > range.upper ||
+          (!range.lower_inclusive && value == range.lower)) {
+        set->Fail(name, "value " + FormatNumber(value) + " is outside the physical range of " +
+                            name);
+      }
+      parameter.Set(value, scene);
+    }
+    driveline::ValidateScene(*scene);
+  }
+  int index = 0;
+  for (const auto& section : top.TableArray("free")) {
+    ++index;
+    section.RequireOnlyKeys({"name", "start", "lower", "upper", "scan"});
+    FreeParameter p;
+    p.parameter = driveline::ParseSceneParameter(*scene, section.RequiredString("name"),
+                                                 section.KeyContext("name"));
+    p.start = section.Number("start", p.parameter.Get(*scene));
+    p.lower = section.RequiredNumber("lower");
+    p.upper = section.RequiredNumber("upper");
+    p.scan = section.Bool("scan", ScannedByDefault(p.parameter.kind));
+    CheckFreeParameter(p, path + ": [[free]] #" + std::to_string(index));
+    config.free.push_back(p);
+  }
+  index = 0;
+  for (const auto& section : top.TableArray("channel")) {
+    ++index;
+    section.RequireOnlyKeys({"column", "link", "weight", "gain", "offset", "lowpass"});
+    ChannelSpec c;
+    c.column = section.RequiredString("column");
+    c.record_channel = record.ChannelIndex(c.column);
+    if (c.record_channel < 0) {
+      section.Fail("column", "no column '" + c.column + "' in the record " + record.source);
+    }
+    c.link = section.String("link", c.column);
+    c.link_index = scene->LinkIndex(c.link);
+    if (c.link_index < 0) section.Fail("link", "no link named '" + c.link + "' in the scene");
+    if (section.Has("weight")) c.weight = section.Positive("weight", section.RequiredNumber("weight"));
+    c.fit_gain = section.Bool("gain", true);
+    c.fit_offset = section.Bool("offset", true);
+    c.lowpass_Hz = section.NonNegative("lowpass", section.Number("lowpass", 0.0));
+    config.channels.push_back(c);
+  }
+  ValidateFitConfig(config, record, path);
+  return config;
+}
+
+FitConfig DefaultFitConfig(const driveline::Scene& scene, const Oscillogram& record) {
+  FitConfig config;
+  config.window_start_s = record.time_s.front();
+  config.window_end_s = record.time_s.back();
+  for (size_t j = 0; j < record.channels.size(); ++j) {
+    const int link = scene.LinkIndex(record.channels[j]);
+    if (link < 0) continue;
+    ChannelSpec c;
+    c.column = c.link = record.channels[j];
+    c.record_channel = static_cast<int>(j);
+    c.link_index = link;
+    config.channels.push_back(c);
+  }
+  if (config.channels.empty()) {
+    throw InputError(record.source + ": no column is named like a link of scene " + scene.file +
+                     "; give a --config with [[channel]] tables");
+  }
+  const std::string where = "default fit of " + scene.file;
+  for (const auto& link : scene.links) {
+    if (link.damping_Nms_per_rad > 0.0) {
+      FreeParameter p;
+      p.parameter = driveline::ParseSceneParameter(scene, link.name + ".damping", where);
+      p.start = link.damping_Nms_per_rad;
+      p.lower = p.start / 10.0;
+      p.upper = p.start * 10.0;
+      config.free.push_back(p);
+    }
+    if (link.backlash_rad > 0.0) {
+      FreeParameter p;
+      p.parameter = driveline::ParseSceneParameter(scene, link.name + ".backlash", where);
+      p.start = link.backlash_rad;
+      p.lower = p.start / 5.0;
+      p.upper = p.start * 3.0;
+      p.scan = true;
+      config.free.push_back(p);
+    }
+  }
+  if (!scene.torques.empty()) {
+    FreeParameter p;
+    p.parameter = driveline::ParseSceneParameter(scene, "bite_time", where);
+    p.start = p.parameter.Get(scene);
+    p.lower = std::max(0.0, p.start - kDefaultBiteHalfRange_s);
+    p.upper = p.start + kDefaultBiteHalfRange_s;
+    p.scan = true;
+    config.free.push_back(p);
+  }
+  ValidateFitConfig(config, record, where);
+  return config;
+}
+
+}  // namespace millkit::identify

@@ -1,0 +1,85 @@
+// What to fit (SPEC.md §4, issue 3): free scene parameters with bounds and starts, the channel →
+// link mapping with per-channel weights and nuisance gain/offset, the time window and the
+// multi-start settings. Read from a TOML file (`millkit identify --config fit.toml`):
+//
+//   [fit]
+//   window = [0.0, 0.4]    # s, part of the record fitted (default: the whole record)
+//   scan = 32              # coarse scan points over gaps and bite time (default 32; 0 = none)
+//   starts = 2             # best scan points refined by Ceres (default 2, >= 1)
+//   seed = 1               # of the scan's Latin hypercube
+//   [set]                  # known values replacing the scene's, not fitted
+//   "lower_spindle.gap_position" = 1.0
+//   [[free]]               # one per fitted scene parameter (names: driveline/scene_parameter.h)
+//   name = "upper_spindle.backlash"
+//   start = 0.015          # default: the scene's value (after [set])
+//   lower = 0.002
+//   upper = 0.04
+//   scan = true            # part of the coarse scan (default: true for backlash and bite_time)
+//   [[channel]]
+//   column = "upper_torque"  # record column
+//   link = "upper_spindle"   # default: the column name
+//   weight = 1.0e-3          # 1/N·m (default: 1/noise, estimated from the residual)
+//   gain = true              # fit a gain (default true; start 1)
+//   offset = true            # fit an offset (default true; start: mean before bite)
+//   lowpass = 800.0          # Hz: the recorder's first-order anti-alias filter, applied to the
+//                            # model (default 0: none; see identify/instrument_filter.h)
+//
+// Without a config: every record column named like a link is a channel; free are the damping of
+// every elastic link in [d/10, 10 d], the backlash of every link with b > 0 in [b/5, 3 b], and
+// bite_time within ±0.02 s; window = the whole record.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "driveline/scene.h"
+#include "driveline/scene_parameter.h"
+#include "identify/oscillogram.h"
+
+namespace millkit::identify {
+
+struct FreeParameter {
+  driveline::SceneParameter parameter;
+  double start = 0.0;
+  double lower = 0.0;
+  double upper = 0.0;
+  bool scan = false;
+};
+
+struct ChannelSpec {
+  std::string column;
+  int record_channel = -1;  // index in Oscillogram::channels
+  std::string link;
+  int link_index = -1;      // scene link
+  std::optional<double> weight;  // none: 1/noise estimated from the residual
+  bool fit_gain = true;
+  bool fit_offset = true;
+  double lowpass_Hz = 0.0;  // the recorder's first-order anti-alias filter, modelled (0: none)
+};
+
+struct FitConfig {
+  std::vector<FreeParameter> free;
+  std::vector<ChannelSpec> channels;
+  double window_start_s = 0.0;
+  double window_end_s = 0.0;
+  int scan_points = 32;
+  int starts = 2;
+  unsigned seed = 1;
+};
+
+// Reads the config, applies its [set] values to `scene` and checks everything against the scene
+// and the record. Throws InputError naming file and key: unknown keys or parameter names, lower >
+// upper, a start outside its bounds, bounds outside the parameter's physical range, a window
+// outside the record or with fewer than kMinRecordSamples samples, a channel column missing from
+// the record, an unknown link, a repeated parameter or channel.
+FitConfig LoadFitConfig(const std::string& path, const Oscillogram& record,
+                        driveline::Scene* scene);
+
+// The defaults above. Throws InputError when no record column is named like a scene link.
+FitConfig DefaultFitConfig(const driveline::Scene& scene, const Oscillogram& record);
+
+// Checks the rules above on a config built in code; `where` prefixes messages.
+void ValidateFitConfig(const FitConfig& config, const Oscillogram& record, const std::string& where);
+
+}  // namespace millkit::identify

@@ -1,0 +1,144 @@
+#include "identify/fit_report.h"
+
+#include <charconv>
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "io/svg_plot.h"
+
+namespace millkit::identify {
+namespace {
+
+// Non-finite numbers become null (JSON has no NaN).
+nlohmann::json Number(double value) {
+  return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
+}
+
+}  // namespace
+
+std::string FitJson(const FitResult& result, const std::string& scene_file,
+                    const std::string& record_file) {
+  using nlohmann::json;
+  json doc;
+  doc["scene"] = scene_file;
+  doc["record"] = record_file;
+  const auto& s = result.summary;
+  doc["success"] = s.success;
+  if (!s.success) doc["message"] = s.message;
+  json parameters = json::array();
+  json not_identifiable = json::array();
+  for (const auto& p : result.parameters) {
+    json item = {{"name", p.name},   {"unit", p.unit},         {"value", Number(p.value)},
+                 {"standard_error", Number(p.identifiable ? p.standard_error : NAN)},
+                 {"start", p.start}, {"lower", p.lower},       {"upper", p.upper},
+                 {"at_bound", p.at_bound}, {"identifiable", p.identifiable}};
+    if (!p.identifiable) {
+      item["why_not"] = p.why_not;
+      not_identifiable.push_back({{"name", p.name}, {"why", p.why_not}});
+    }
+    parameters.push_back(item);
+  }
+  doc["parameters"] = parameters;
+  doc["not_identifiable"] = not_identifiable;
+  json channels = json::array();
+  for (const auto& c : result.channels) {
+    channels.push_back({{"column", c.column},
+                        {"link", c.link},
+                        {"gain", Number(c.gain)},
+                        {"gain_standard_error", Number(c.gain_se)},
+                        {"offset_Nm", Number(c.offset)},
+                        {"offset_standard_error_Nm", Number(c.offset_se)},
+                        {"weight_per_Nm", c.weight},
+                        {"rms_residual_Nm", Number(c.rms_residual)},
+                        {"samples", c.samples}});
+  }
+  doc["channels"] = channels;
+  json matrix = json::array();
+  for (int i = 0; i < result.correlation.rows(); ++i) {
+    json row = json::array();
+    for (int j = 0; j < result.correlation.cols(); ++j) row.push_back(Number(result.correlation(i, j)));
+    matrix.push_back(row);
+  }
+  doc["correlation"] = {{"names", result.quantity_names}, {"matrix", matrix}};
+  json minima = json::array();
+  for (const auto& m : result.minima) {
+    json values;
+    for (size_t i = 0; i < m.values.size() && i < result.parameters.size(); ++i) {
+      values[result.parameters[i].name] = m.values[i];
+    }
+    minima.push_back({{"cost", Number(m.cost)},
+                      {"iterations", m.iterations},
+                      {"converged", m.converged},
+                      {"values", values}});
+  }
+  doc["multistart"] = {{"scan_points", s.scan_points},
+                       {"starts", s.starts},
+                       {"starts_at_best", s.starts_at_best},
+                       {"minima", minima}};
+  doc["summary"] = {{"ceres", s.ceres_brief},
+                    {"termination", s.termination},
+                    {"iterations", s.iterations},
+                    {"simulations", s.simulations},
+                    {"wall_time_s", s.wall_time_s},
+                    {"cost", Number(s.cost)},
+                    {"residuals", s.residuals},
+                    {"fitted_quantities", s.fitted_quantities},
+                    {"noise_scale", Number(s.noise_scale)},
+                    {"reciprocal_condition", Number(s.reciprocal_condition)}};
+  return doc.dump(2) + "\n";
+}
+
+std::string FitTraceCsv(const FitResult& result) {
+  std::string text = "time";
+  for (const auto& c : result.channels) {
+    text += "," + c.column + ".measured," + c.column + ".fitted," + c.column + ".residual";
+  }
+  text += '\n';
+  char cell[40];
+  auto append = [&](double value) {
+    text.append(cell, std::to_chars(cell, cell + sizeof(cell), value).ptr);
+  };
+  for (size_t k = 0; k < result.window_time_s.size(); ++k) {
+    append(result.window_time_s[k]);
+    for (const auto& c : result.channels) {
+      text += ',';
+      append(c.measured[k]);
+      text += ',';
+      append(c.fitted[k]);
+      text += ',';
+      append(c.fitted[k] - c.measured[k]);
+    }
+    text += '\n';
+  }
+  return text;
+}
+
+std::string FitPlotSvg(const FitResult& result, const std::string& title) {
+  std::vector<PlotPanel> panels;
+  for (const auto& c : result.channels) {
+    PlotPanel torque;
+    torque.title = c.column + " (link " + c.link + ")";
+    torque.x_title = "time, s";
+    torque.y_title = "torque, N*m";
+    torque.series.push_back({"measured", result.window_time_s, c.measured,
+                             PlotSeries::Style::kMarkers});
+    torque.series.push_back({"fitted", result.window_time_s, c.fitted, PlotSeries::Style::kLine});
+    PlotPanel residual;
+    residual.title = c.column + ": residual (fitted - measured), rms " +
+                     std::to_string(c.rms_residual) + " N*m";
+    residual.x_title = "time, s";
+    residual.y_title = "residual, N*m";
+    std::vector<double> r(c.fitted.size());
+    for (size_t k = 0; k < r.size(); ++k) r[k] = c.fitted[k] - c.measured[k];
+    residual.series.push_back({"", result.window_time_s, r, PlotSeries::Style::kLine});
+    panels.push_back(std::move(torque));
+    panels.push_back(std::move(residual));
+  }
+  PlotOptions options;
+  options.title = title;
+  options.panel_height_px = 260.0;
+  return RenderSvgPlot(panels, options);
+}
+
+}  // namespace millkit::identify

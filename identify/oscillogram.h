@@ -1,0 +1,35 @@
+// Measured oscillograms (SPEC.md §3): a CSV with a header row, first column `time` (s, strictly
+// increasing), further columns named channels (strain-gauge torque, N·m after calibration).
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace millkit::identify {
+
+struct Oscillogram {
+  std::string source;                       // file name, for messages
+  std::vector<double> time_s;
+  std::vector<std::string> channels;        // column names after `time`
+  std::vector<std::vector<double>> values;  // values[channel][sample]
+  std::vector<int> line_numbers;            // file line of each sample (1-based)
+
+  int ChannelIndex(const std::string& name) const;  // −1 when absent
+  // Indices of the samples with time in [start, end].
+  std::pair<int, int> WindowRange(double start, double end) const;
+};
+
+// Fewer samples than this cannot constrain a fit.
+inline constexpr int kMinRecordSamples = 16;
+
+// Reads and checks a record. Throws InputError naming the file, row and column for a cell that is
+// not a finite number, a time that does not strictly increase, a first column not named `time`,
+// no channel column, or fewer than kMinRecordSamples rows.
+Oscillogram LoadOscillogram(const std::filesystem::path& path);
+Oscillogram ParseOscillogram(const std::string& text, const std::string& source);
+
+// CSV text of a record (shortest round-trip numbers); used by the record generator.
+std::string FormatOscillogram(const Oscillogram& record);
+
+}  // namespace millkit::identify

@@ -1,0 +1,76 @@
+// Test support for identification: the bundled five-mass scene, its fit config and synthetic
+// records made in code from stated true values (the same values as
+// datasets/records/mill5_two_spindles.spec.toml).
+#pragma once
+
+#include <map>
+#include <string>
+
+#include "driveline/scene.h"
+#include "driveline/scene_parameter.h"
+#include "identify/fit.h"
+#include "identify/fit_config.h"
+#include "identify/record_generator.h"
+#include "support/run_cli.h"
+
+namespace millkit::identify::testing {
+
+inline const std::map<std::string, double>& Mill5Truth() {
+  static const std::map<std::string, double> truth = {
+      {"motor_shaft.damping", 32000.0},    {"main_coupling.damping", 75000.0},
+      {"upper_spindle.damping", 6200.0},   {"lower_spindle.damping", 3300.0},
+      {"main_coupling.backlash", 0.0052},  {"upper_spindle.backlash", 0.0235},
+      {"lower_spindle.backlash", 0.0265},  {"upper_spindle.stiffness", 1.15e7},
+      {"bite_time", 0.0537}};
+  return truth;
+}
+inline constexpr double kUpperGain = 1.03;
+inline constexpr double kUpperOffset = 1200.0;
+inline constexpr double kLowerGain = 0.97;
+inline constexpr double kLowerOffset = -800.0;
+
+inline driveline::Scene Mill5Scene() {
+  return driveline::LoadScene(millkit::testing::SourcePath("datasets/scenes/mill5_bite.toml"));
+}
+
+// The scene with the true values (and `extra` values) applied.
+inline driveline::Scene Mill5TruthScene(const std::map<std::string, double>& extra = {}) {
+  driveline::Scene scene = Mill5Scene();
+  for (const auto* values : {&Mill5Truth(), &extra}) {
+    for (const auto& [name, value] : *values) {
+      driveline::ParseSceneParameter(scene, name, "test").Set(value, &scene);
+    }
+  }
+  return scene;
+}
+
+// A two-channel record (upper and lower spindle torque) at 2 kHz over 0.4 s.
+inline Oscillogram Mill5Record(double noise_fraction, int bits, double lowpass_Hz,
+                               unsigned long seed,
+                               const std::map<std::string, double>& extra = {}) {
+  RecordSpec spec;
+  spec.defects.sample_rate_Hz = 2000.0;
+  spec.defects.duration_s = 0.4;
+  spec.defects.noise_fraction = noise_fraction;
+  spec.defects.bits = bits;
+  spec.defects.lowpass_Hz = lowpass_Hz;
+  spec.defects.seed = seed;
+  const driveline::Scene truth = Mill5TruthScene(extra);
+  spec.channels = {{"upper_spindle", truth.LinkIndex("upper_spindle"), kUpperGain, kUpperOffset},
+                   {"lower_spindle", truth.LinkIndex("lower_spindle"), kLowerGain, kLowerOffset}};
+  return GenerateRecord(truth, spec);
+}
+
+// The bundled fit config (8 link parameters + bite time; gain and offset per channel), with the
+// recorder filter as given, no scan and one start unless changed by the caller.
+inline FitConfig Mill5Config(const Oscillogram& record, driveline::Scene* scene,
+                             double lowpass_Hz = 0.0) {
+  FitConfig config = LoadFitConfig(
+      millkit::testing::SourcePath("datasets/records/mill5_two_spindles.fit.toml"), record, scene);
+  for (auto& channel : config.channels) channel.lowpass_Hz = lowpass_Hz;
+  config.scan_points = 0;
+  config.starts = 1;
+  return config;
+}
+
+}  // namespace millkit::identify::testing
