@@ -370,7 +370,7 @@ ceres::Problem::Options ProblemOptions() {
 // start the next stage inside the right basin.
 LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<double> theta,
                 bool final_stage) {
-  RecordResidual residual(model, options.derivative_step, /*central=*/false,
+  RecordResidual residual(model, options.derivative_step, options.central_differences,
                           /*transformed=*/true);
   ceres::Problem problem(ProblemOptions());
   LocalFit fit;
@@ -506,6 +506,51 @@ void FlagUnidentifiable(const Eigen::MatrixXd& jac, const std::vector<int>& fitt
 }
 
 }  // namespace
+
+std::vector<double> CramerRaoBound(const driveline::Scene& scene, const Oscillogram& record,
+                                   const FitConfig& config, const std::vector<double>& noise_Nm,
+                                   const FitOptions& options) {
+  options.Validate();
+  ValidateFitConfig(config, record, "fit config");
+  FitModel model(scene, record, config);
+  std::vector<double> theta(model.size(), 0.0);
+  for (int i = 0; i < model.parameters(); ++i) {
+    theta[i] = model.Normalised(i, config.free[i].parameter.Get(scene));
+  }
+  for (int c = 0; c < model.channels(); ++c) {
+    theta[model.gain_index(c)] = 1.0;
+    model.set_weight(c, 1.0 / noise_Nm.at(c));
+  }
+  RecordResidual residual(model, options.derivative_step, /*central=*/true);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jac(model.residuals(),
+                                                                              model.size());
+  Eigen::VectorXd r(model.residuals());
+  const double* parameters[] = {theta.data()};
+  double* jacobians[] = {jac.data()};
+  if (!residual.Evaluate(parameters, r.data(), jacobians)) {
+    throw InputError("Cramér–Rao bound: the scene does not simulate: " + model.last_failure());
+  }
+  std::vector<int> fitted;
+  const auto constant = ConstantIndices(model);
+  for (int j = 0; j < model.size(); ++j) {
+    if (std::find(constant.begin(), constant.end(), j) == constant.end()) fitted.push_back(j);
+  }
+  Eigen::MatrixXd reduced(jac.rows(), fitted.size());
+  for (size_t j = 0; j < fitted.size(); ++j) reduced.col(j) = jac.col(fitted[j]);
+  const Eigen::MatrixXd information = reduced.transpose() * reduced;
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(information);
+  const Eigen::MatrixXd inverse =
+      ldlt.solve(Eigen::MatrixXd::Identity(information.rows(), information.cols()));
+  std::vector<double> bound;
+  for (int i = 0; i < model.parameters(); ++i) {
+    const auto& free = config.free[i];
+    const double variance = inverse(i, i);
+    bound.push_back(variance > 0.0 && std::isfinite(variance)
+                        ? std::sqrt(variance) * (free.upper - free.lower)
+                        : std::numeric_limits<double>::quiet_NaN());
+  }
+  return bound;
+}
 
 FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const FitConfig& config,
               const FitOptions& options) {

@@ -51,6 +51,8 @@ struct FitOptions {
   int max_iterations = 100;
   double derivative_step = 1e-6;  // normalised (fraction of the bound width)
   bool polish_with_noise_weights = true;
+  // Central instead of forward differences while iterating (the covariance always uses central).
+  bool central_differences = false;
   int threads = 1;                // Ceres threads (the simulations themselves are serial)
   void Validate() const;
 };
@@ -123,6 +125,15 @@ struct FitResult {
 // reports failure) has summary.success = false and a message.
 FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const FitConfig& config,
               const FitOptions& options);
+
+// Cramér–Rao bound of the free scene parameters (physical units, in config order) for a record
+// with white noise of the given standard deviation per channel (N·m), at the values in `scene`
+// (gains 1, offsets 0): sqrt(diag((JᵀJ)⁻¹)) with the noise-weighted central-difference Jacobian
+// over the scene parameters, gains and offsets. NaN when J is rank-deficient. Throws
+// InputError when the scene does not simulate.
+std::vector<double> CramerRaoBound(const driveline::Scene& scene, const Oscillogram& record,
+                                   const FitConfig& config, const std::vector<double>& noise_Nm,
+                                   const FitOptions& options);
 
 // Simulated torque of each channel's link at the record times in [begin, end); the scene's
 // parameters as given. Returns false with a reason when the scene is invalid or the solver fails.

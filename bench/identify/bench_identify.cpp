@@ -1,0 +1,218 @@
+// Speed and accuracy of identification (issue 3). Not a test: it times.
+//
+// Five-mass scene, two spindle channels at 2 kHz over the bundled fit's window, 8 link parameters
+// + bite time + gain and offset per channel (datasets/records/mill5_two_spindles.{spec,fit}.toml).
+// In one run:
+//  1. Noisy records (1 % noise, 12-bit, gain/offset errors; no recorder filter), --seeds of them:
+//     each fitted from the scene's nominal values with the bundled robust start, for forward and
+//     central differences while iterating. Reported: median wall time, simulations, convergence
+//     (cost within 1e-6 of the fit started at the truth), and per parameter the RMSE over the
+//     seeds against the Cramér–Rao bound at the truth.
+//  2. Convergence from ±50 % starts on the noise-free record (--starts random starts, no scan):
+//     the share that recovers every parameter to 1e-6.
+//  3. SciPy (least_squares over solve_ivp) on the first noisy record, through
+//     bench/identify/scipy_identify.py, when /usr/bin/python3 has scipy.
+// Exits non-zero when a fit from the truth fails to converge (a bug, not a slowness).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "driveline/scene_parameter.h"
+#include "identify/fit.h"
+#include "identify/fit_config.h"
+#include "identify/record_generator.h"
+#include <glog/logging.h>
+
+#include "io/atomic_file.h"
+
+using namespace millkit;
+using namespace millkit::identify;
+
+namespace {
+
+const std::string kSource = MILLKIT_SOURCE_DIR;
+constexpr double kNoise = 0.01;
+
+struct Setup {
+  driveline::Scene nominal;  // the engineer's prior (the scene file)
+  driveline::Scene truth;    // with the spec's [truth]
+  RecordSpec spec;
+};
+
+Setup LoadSetup() {
+  Setup s;
+  s.nominal = driveline::LoadScene(kSource + "/datasets/scenes/mill5_bite.toml");
+  s.truth = s.nominal;
+  s.spec = LoadRecordSpec(kSource + "/datasets/records/mill5_two_spindles.spec.toml", &s.truth);
+  s.spec.defects.lowpass_Hz = 0.0;
+  s.spec.defects.noise_fraction = kNoise;
+  return s;
+}
+
+FitConfig Config(const Oscillogram& record, driveline::Scene* scene) {
+  FitConfig config =
+      LoadFitConfig(kSource + "/datasets/records/mill5_two_spindles.fit.toml", record, scene);
+  for (auto& c : config.channels) c.lowpass_Hz = 0.0;
+  return config;
+}
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int seeds = 20;
+  int random_starts = 100;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string flag = argv[i];
+    if (flag == "--seeds") seeds = std::atoi(argv[i + 1]);
+    if (flag == "--starts") random_starts = std::atoi(argv[i + 1]);
+  }
+  FLAGS_minloglevel = 3;  // Ceres' glog: a start that fails to simulate is data, not a message
+  Setup setup = LoadSetup();
+  int status = 0;
+
+  // Cramér–Rao bound at the truth: noise σ_c = kNoise × peak |g m_c| of the true record.
+  RecordSpec clean_spec = setup.spec;
+  clean_spec.defects.noise_fraction = 0.0;
+  clean_spec.defects.bits = 0;
+  const Oscillogram clean = GenerateRecord(setup.truth, clean_spec);
+  driveline::Scene scene = setup.nominal;
+  const FitConfig clean_config = Config(clean, &scene);
+  std::vector<double> noise;
+  for (size_t c = 0; c < clean_spec.channels.size(); ++c) {
+    double peak = 0.0;
+    for (double v : clean.values[c]) {
+      peak = std::max(peak, std::abs(v - clean_spec.channels[c].offset_Nm));
+    }
+    // The generator's σ is kNoise × peak |m| (before gain); the fit sees g·m: noise in the
+    // fit's units is σ/g.
+    noise.push_back(kNoise * peak / clean_spec.channels[c].gain / clean_spec.channels[c].gain);
+  }
+  std::vector<double> bound =
+      CramerRaoBound(setup.truth, clean, clean_config, noise, FitOptions{});
+  std::vector<double> truth;
+  for (const auto& free : clean_config.free) truth.push_back(free.parameter.Get(setup.truth));
+
+  std::printf("## Identification: five-mass bite, 2 channels at 2 kHz, %zu parameters + 4 nuisance\n\n",
+              clean_config.free.size());
+  std::printf("| derivatives | fits | converged | median wall s | median simulations | "
+              "worst RMSE / CRLB (parameter) |\n|---|---|---|---|---|---|\n");
+  Oscillogram first_noisy;
+  for (const bool central : {false, true}) {
+    FitOptions options;
+    options.central_differences = central;
+    std::vector<double> walls;
+    std::vector<long> sims;
+    std::vector<double> sum_sq(truth.size(), 0.0);
+    int converged = 0;
+    for (int seed = 1; seed <= seeds; ++seed) {
+      RecordSpec spec = setup.spec;
+      spec.defects.seed = 5000 + seed;
+      const Oscillogram record = GenerateRecord(setup.truth, spec);
+      if (seed == 1) first_noisy = record;
+      driveline::Scene fit_scene = setup.nominal;
+      FitConfig config = Config(record, &fit_scene);
+      const auto start = std::chrono::steady_clock::now();
+      const FitResult fit = Fit(fit_scene, record, config, options);
+      walls.push_back(Seconds(start));
+      sims.push_back(fit.summary.simulations);
+      // Reference: the same record fitted from the truth, no scan.
+      FitConfig from_truth = config;
+      for (size_t i = 0; i < truth.size(); ++i) from_truth.free[i].start = truth[i];
+      from_truth.scan_points = 0;
+      from_truth.starts = 1;
+      const FitResult reference = Fit(fit_scene, record, from_truth, options);
+      if (!reference.summary.success) {
+        std::fprintf(stderr, "bench_identify: the fit from the truth failed (seed %d): %s\n", seed,
+                     reference.summary.message.c_str());
+        status = 1;
+        continue;
+      }
+      bool same = fit.summary.success;
+      for (size_t i = 0; same && i < truth.size(); ++i) {
+        same = std::abs(fit.parameters[i].value - reference.parameters[i].value) <=
+               0.1 * reference.parameters[i].standard_error;
+      }
+      converged += same ? 1 : 0;
+      for (size_t i = 0; i < truth.size(); ++i) {
+        sum_sq[i] += std::pow(fit.parameters[i].value - truth[i], 2);
+      }
+    }
+    std::sort(walls.begin(), walls.end());
+    std::sort(sims.begin(), sims.end());
+    double worst = 0.0;
+    std::string worst_name;
+    for (size_t i = 0; i < truth.size(); ++i) {
+      const double ratio = std::sqrt(sum_sq[i] / seeds) / bound[i];
+      if (ratio > worst) {
+        worst = ratio;
+        worst_name = clean_config.free[i].parameter.name;
+      }
+    }
+    std::printf("| %s | %d | %d | %.2f | %ld | %.2f (%s) |\n", central ? "central" : "forward",
+                seeds, converged, walls[walls.size() / 2], sims[sims.size() / 2], worst,
+                worst_name.c_str());
+    std::fflush(stdout);
+  }
+  std::printf("\nCramér–Rao bound at the truth (1 %% noise):\n\n| parameter | truth | CRLB |\n|---|---|---|\n");
+  for (size_t i = 0; i < truth.size(); ++i) {
+    std::printf("| %s | %.6g | %.3g |\n", clean_config.free[i].parameter.name.c_str(), truth[i],
+                bound[i]);
+  }
+
+  // Convergence from ±50 % starts, noise-free record, continuation alone (no scan, one start).
+  std::mt19937_64 random(7);
+  std::uniform_real_distribution<double> factor(0.5, 1.5);
+  int recovered = 0;
+  std::vector<double> walls;
+  for (int k = 0; k < random_starts; ++k) {
+    driveline::Scene fit_scene = setup.nominal;
+    FitConfig config = Config(clean, &fit_scene);
+    config.scan_points = 0;
+    config.starts = 1;
+    for (size_t i = 0; i < truth.size(); ++i) {
+      auto& free = config.free[i];
+      const double span = free.parameter.name == "bite_time" ? 0.02 : truth[i];
+      const double value = free.parameter.name == "bite_time"
+                               ? truth[i] + (factor(random) - 1.0) * span
+                               : truth[i] * factor(random);
+      free.start = std::clamp(value, free.lower, free.upper);
+    }
+    const auto start = std::chrono::steady_clock::now();
+    const FitResult fit = Fit(fit_scene, clean, config, FitOptions{});
+    walls.push_back(Seconds(start));
+    bool ok = fit.summary.success;
+    for (size_t i = 0; ok && i < truth.size(); ++i) {
+      ok = std::abs(fit.parameters[i].value - truth[i]) <= 1e-6 * std::abs(truth[i]);
+    }
+    recovered += ok ? 1 : 0;
+  }
+  std::sort(walls.begin(), walls.end());
+  std::printf("\n±50 %% starts, noise-free record, no scan: %d of %d recover every parameter to "
+              "1e-6 (median %.2f s per fit)\n",
+              recovered, random_starts, walls.empty() ? 0.0 : walls[walls.size() / 2]);
+  std::fflush(stdout);
+
+  // SciPy on the first noisy record.
+  const auto dir = std::filesystem::temp_directory_path() / "millkit_bench_identify";
+  std::filesystem::create_directories(dir);
+  WriteFileAtomically(dir / "record.csv", FormatOscillogram(first_noisy));
+  const std::string script = kSource + "/bench/identify/scipy_identify.py";
+  const std::string command = "/usr/bin/python3 -c 'import scipy' 2>/dev/null && /usr/bin/python3 '" +
+                              script + "' '" + kSource + "/datasets/scenes/mill5_bite.toml' '" +
+                              (dir / "record.csv").string() + "'";
+  std::printf("\nSciPy least_squares over solve_ivp, same record, same start (nominal) and bounds:\n\n");
+  std::fflush(stdout);
+  if (std::system(command.c_str()) != 0) std::printf("(SciPy not available or failed)\n");
+  return status;
+}
