@@ -10,6 +10,7 @@ namespace millkit::cli {
 void AddSimulateCommand(CLI::App& app);
 void AddLevellerCommand(CLI::App& app);
 void AddBalancerCommand(CLI::App& app);
+void AddCouplingCommand(CLI::App& app);
 void AddSweepCommand(CLI::App& app);
 
 }  // namespace millkit::cli

@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   millkit::cli::AddSimulateCommand(app);
   millkit::cli::AddLevellerCommand(app);
   millkit::cli::AddBalancerCommand(app);
+  millkit::cli::AddCouplingCommand(app);
   millkit::cli::AddSweepCommand(app);
   try {
     app.parse(argc, argv);

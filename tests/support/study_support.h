@@ -16,6 +16,18 @@ inline const driveline::Scene& Mill5Scene() {
   return scene;
 }
 
+// Appends mass `mass` (inertia J) joined to mass `from` by a copy of the scene's first link
+// named `link` (from → new mass).
+inline void AppendMass(driveline::Scene* scene, const std::string& mass, double inertia,
+                       const std::string& link, int from) {
+  scene->masses.push_back({mass, inertia});
+  driveline::Link added = scene->links.front();
+  added.name = link;
+  added.from = from;
+  added.to = static_cast<int>(scene->masses.size()) - 1;
+  scene->links.push_back(added);
+}
+
 // Writes `text` to a scratch file named `file_name`, calls load(path) and returns the message
 // of the InputError it throws; "" when it throws none.
 template <class Load>

@@ -8,9 +8,7 @@
 
 using namespace millkit::sweep;
 using Catch::Matchers::Contains;
-using millkit::InputError;
 using millkit::testing::ScratchDir;
-using millkit::testing::SourcePath;
 using millkit::testing::WriteText;
 
 namespace {
