@@ -11,5 +11,7 @@ void AddSimulateCommand(CLI::App& app);
 void AddLevellerCommand(CLI::App& app);
 void AddBalancerCommand(CLI::App& app);
 void AddIdentifyCommand(CLI::App& app);  // and `synthesize`
+void AddCouplingCommand(CLI::App& app);
+void AddSweepCommand(CLI::App& app);
 
 }  // namespace millkit::cli

@@ -15,6 +15,8 @@ int main(int argc, char** argv) {
   millkit::cli::AddLevellerCommand(app);
   millkit::cli::AddBalancerCommand(app);
   millkit::cli::AddIdentifyCommand(app);
+  millkit::cli::AddCouplingCommand(app);
+  millkit::cli::AddSweepCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

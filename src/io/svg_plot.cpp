@@ -23,12 +23,23 @@ std::string Escape(const std::string& text) {
   std::string out;
   for (char c : text) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&apos;"; break;
-      default: out += c;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&apos;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -80,7 +91,13 @@ Axis MakeAxis(bool log, double data_lo, double data_hi) {
     const double every = std::max(1.0, std::ceil((hi - lo) / kTargetTicks));
     axis.lo = lo;
     axis.hi = hi;
-    for (double e = lo; e <= hi + 0.5; e += every) axis.ticks.push_back(std::pow(10.0, e));
+    // Two decades or fewer: 1, 2, 5 in each decade; else decades only.
+    const bool fine = hi - lo <= 2.0;
+    for (double e = lo; e <= hi + 0.5; e += every) {
+      for (double m : {1.0, 2.0, 5.0}) {
+        if ((m == 1.0 || (fine && e < hi))) axis.ticks.push_back(m * std::pow(10.0, e));
+      }
+    }
     return axis;
   }
   if (data_hi == data_lo) {
@@ -100,8 +117,7 @@ Axis MakeAxis(bool log, double data_lo, double data_hi) {
   return axis;
 }
 
-void RenderPanel(const PlotPanel& panel, double top, const PlotOptions& options,
-                 std::string* svg) {
+void RenderPanel(const PlotPanel& panel, double top, const PlotOptions& options, std::string* svg) {
   double x_lo = std::numeric_limits<double>::infinity(), x_hi = -x_lo;
   double y_lo = x_lo, y_hi = -x_lo;
   Axis probe_x, probe_y;
@@ -176,8 +192,8 @@ void RenderPanel(const PlotPanel& panel, double top, const PlotOptions& options,
       std::string points;
       auto flush = [&] {
         if (points.find(' ') != std::string::npos) {  // at least two points
-          out += "<polyline fill=\"none\" stroke=\"" + colour + "\" stroke-width=\"1.5\" points=\"" +
-                 points + "\"/>\n";
+          out += "<polyline fill=\"none\" stroke=\"" + colour +
+                 "\" stroke-width=\"1.5\" points=\"" + points + "\"/>\n";
         }
         points.clear();
       };

@@ -4,7 +4,8 @@
 //
 // Axes: linear, or logarithmic (base 10) per axis. The range of an axis covers every finite point
 // of its panel (points with a non-finite coordinate, or a non-positive one on a log axis, are
-// skipped and break a line), widened to "nice" tick values (1, 2, 5 × 10^k; decades on log axes).
+// skipped and break a line), widened to "nice" tick values (1, 2, 5 × 10^k; decades on log axes,
+// with 2 and 5 between them when the axis spans two decades or fewer).
 // A panel with no drawable point is drawn empty with the note "no data".
 #pragma once
 

@@ -1,0 +1,172 @@
+// Sweep and coupling-optimiser benchmark (issue 5). Not a test: it times, and checks its answers.
+//
+// On the bundled five-mass bite scene and the study datasets/studies/mill5_lhs.toml (first
+// --cases cases), in one run:
+//  - bite simulations per second at 1 and 2 threads (min wall time over --repeats runs: the
+//    machine is shared, the minimum is the least disturbed run), per core, and the parallel
+//    efficiency rate(2) / (2 rate(1));
+//  - where one case's time goes: model build, simulation, Kd;
+//  - the error: Kd of --check cases against CVODE at rtol 1e-12 in the same run (max |ΔKd|);
+//  - the coupling optimiser on datasets/studies/mill5_coupling.toml: evaluations, wall time.
+// Exits non-zero when the 1- and 2-thread rows differ or Kd misses CVODE by more than 1e-6
+// (a wrong answer, not a slow one).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "optimize/coupling/coupling_config.h"
+#include "sweep/sweep_config.h"
+#include "sweep/sweep_runner.h"
+#include "sweep/sweep_table.h"
+
+using namespace millkit;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr double kKdTolerance = 1e-6;  // |Kd_exact − Kd_cvode(1e-12)|, both from samples
+
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+struct Timing {
+  double best_s = 1e300;
+  std::string csv;
+};
+
+Timing TimeSweep(const driveline::Scene& scene, const sweep::SweepConfig& config,
+                 const sweep::CaseList& cases, int threads, int repeats) {
+  Timing timing;
+  const auto evaluate =
+      sweep::SceneCaseFunction(scene, config.Parameters(), sweep::StudySimulationOptions());
+  sweep::RunnerOptions options;
+  options.threads = threads;
+  for (int r = 0; r < repeats; ++r) {
+    sweep::RunnerSummary summary;
+    const auto results = sweep::RunCases(evaluate, cases, options, &summary);
+    timing.best_s = std::min(timing.best_s, summary.wall_time_s);
+    if (r == 0) timing.csv = sweep::FormatSweepCsv(scene, config, cases, results);
+  }
+  return timing;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::string root = MILLKIT_SOURCE_DIR;
+  int case_count = 1000, repeats = 5, check = 8;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string arg = argv[i];
+    if (arg == "--cases")
+      case_count = std::atoi(argv[i + 1]);
+    else if (arg == "--repeats")
+      repeats = std::atoi(argv[i + 1]);
+    else if (arg == "--check")
+      check = std::atoi(argv[i + 1]);
+  }
+  const driveline::Scene scene = driveline::LoadScene(root + "/datasets/scenes/mill5_bite.toml");
+  const sweep::SweepConfig config =
+      sweep::LoadSweepConfig(root + "/datasets/studies/mill5_lhs.toml", scene);
+  sweep::CaseList cases = config.Cases();
+  cases.resize(std::min<size_t>(cases.size(), static_cast<size_t>(case_count)));
+  std::printf("scene %s, study %s: %zu cases, %d samples each, min of %d runs\n",
+              scene.name.c_str(), "mill5_lhs.toml", cases.size(), scene.SampleCount(), repeats);
+  int failures = 0;
+
+  // Throughput and efficiency.
+  const Timing one = TimeSweep(scene, config, cases, 1, repeats);
+  const Timing two = TimeSweep(scene, config, cases, 2, repeats);
+  const double rate1 = cases.size() / one.best_s, rate2 = cases.size() / two.best_s;
+  std::printf("threads 1: %8.0f simulations/s (%.3f ms each)\n", rate1, 1e3 / rate1);
+  std::printf("threads 2: %8.0f simulations/s, %.0f per core, efficiency %.2f\n", rate2,
+              rate2 / 2.0, rate2 / (2.0 * rate1));
+  if (one.csv != two.csv) {
+    std::printf("MISMATCH: rows differ between 1 and 2 threads\n");
+    ++failures;
+  }
+
+  // Where one case's time goes (single thread, over the first 200 cases).
+  {
+    const auto parameters = config.Parameters();
+    const auto options = sweep::StudySimulationOptions();
+    double build = 0.0, simulate = 0.0, kd = 0.0;
+    const size_t n = std::min<size_t>(cases.size(), 200);
+    long events = 0;
+    for (size_t c = 0; c < n; ++c) {
+      auto t = Clock::now();
+      const driveline::Model model(sweep::WithValues(scene, parameters, cases[c]));
+      build += Seconds(t);
+      t = Clock::now();
+      const auto run = driveline::Simulate(model, options);
+      simulate += Seconds(t);
+      t = Clock::now();
+      const auto factors = driveline::DynamicFactors(model, run);
+      kd += Seconds(t);
+      events += run.summary.events;
+    }
+    std::printf("per case: model build %.3f ms, simulation %.3f ms, Kd %.3f ms; %.1f events\n",
+                1e3 * build / n, 1e3 * simulate / n, 1e3 * kd / n, static_cast<double>(events) / n);
+  }
+
+  // Error against CVODE at rtol 1e-12.
+  {
+    driveline::SimulationOptions cvode;
+    cvode.solver = driveline::SolverKind::kCvode;
+    cvode.rtol = 1e-12;
+    double worst = 0.0, worst_relative = 0.0;
+    const size_t stride = std::max<size_t>(1, cases.size() / std::max(check, 1));
+    int compared = 0;
+    for (size_t c = 0; c < cases.size() && compared < check; c += stride, ++compared) {
+      const auto at = sweep::WithValues(scene, config.Parameters(), cases[c]);
+      const auto exact = sweep::SimulateCase(at, sweep::StudySimulationOptions());
+      const auto reference = sweep::SimulateCase(at, cvode);
+      if (!exact.success || !reference.success) {
+        std::printf("case %zu failed: %s %s\n", c, exact.message.c_str(),
+                    reference.message.c_str());
+        ++failures;
+        continue;
+      }
+      for (size_t l = 0; l < exact.kd.size(); ++l) {
+        const double d = std::abs(exact.kd[l] - reference.kd[l]);
+        worst = std::max(worst, d);
+        worst_relative = std::max(worst_relative, d / reference.kd[l]);
+      }
+    }
+    std::printf(
+        "Kd error vs CVODE rtol 1e-12 over %d cases x %zu links: max |dKd| %.2e "
+        "(relative %.2e)\n",
+        compared, scene.links.size(), worst, worst_relative);
+    if (!(worst <= kKdTolerance)) {
+      std::printf("MISMATCH: Kd differs from CVODE by more than %.0e\n", kKdTolerance);
+      ++failures;
+    }
+  }
+
+  // The coupling optimiser.
+  {
+    const auto study =
+        coupling::LoadCouplingStudy(root + "/datasets/studies/mill5_coupling.toml", scene);
+    double best_s = 1e300;
+    coupling::CouplingResult result;
+    for (int r = 0; r < std::max(1, repeats / 2); ++r) {
+      result = coupling::OptimizeCoupling(scene, study.problem, study.options);
+      best_s = std::min(best_s, result.summary.wall_time_s);
+    }
+    const auto& s = result.summary;
+    std::printf(
+        "coupling: %d + %d evaluations (%d simulations), %.3f s (min), Kd_max %.4f "
+        "(scene as given %.4f), from %s\n",
+        s.global_evaluations, s.local_evaluations, s.simulations, best_s, result.best.kd_max,
+        result.scene ? result.scene->kd_max : NAN, s.chosen_from.c_str());
+    if (!s.found) {
+      std::printf("coupling: no feasible point found\n");
+      ++failures;
+    }
+  }
+  return failures == 0 ? 0 : 1;
+}

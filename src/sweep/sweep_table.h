@@ -1,0 +1,30 @@
+// The outputs of a sweep (issue 5): one CSV row per case, in case order, and one plot panel of Kd
+// against each swept parameter.
+//
+// CSV columns: `case` (0-based), one column per swept parameter (its name), `status` (ok |
+// failed), `events`, then per reported link `kd.<link>` and `peak_Nm.<link>`, and `message` last
+// (double-quoted; why the case failed, empty otherwise). Numbers are the shortest text that reads
+// back to the same double. Empty cells: Kd undefined (static torque 0), or a failed case.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "io/svg_plot.h"
+#include "sweep/sweep_case.h"
+#include "sweep/sweep_config.h"
+
+namespace millkit::sweep {
+
+std::string FormatSweepCsv(const driveline::Scene& scene, const SweepConfig& config,
+                           const CaseList& cases, const std::vector<CaseResult>& results);
+
+// One panel per swept parameter: Kd of each reported link (markers) against the parameter.
+std::vector<PlotPanel> SweepPlotPanels(const driveline::Scene& scene, const SweepConfig& config,
+                                       const CaseList& cases,
+                                       const std::vector<CaseResult>& results);
+
+// A CSV cell: the text double-quoted, inner quotes doubled, line breaks as spaces.
+std::string QuotedCell(const std::string& text);
+
+}  // namespace millkit::sweep
