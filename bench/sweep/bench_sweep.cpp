@@ -8,6 +8,9 @@
 //  - where one case's time goes: model build, simulation, Kd;
 //  - the error: Kd of --check cases against CVODE at rtol 1e-12 in the same run (max |ΔKd|);
 //  - the coupling optimiser on datasets/studies/mill5_coupling.toml: evaluations, wall time.
+// Under mpirun (a build with MILLKIT_WITH_MPI) it measures only the distributed throughput, one
+// thread per rank, rows checked against a serial run on rank 0:
+//   mpirun -np 1 bench_sweep; mpirun -np 2 bench_sweep
 // Exits non-zero when the 1- and 2-thread rows differ or Kd misses CVODE by more than 1e-6
 // (a wrong answer, not a slow one).
 #include <algorithm>
@@ -19,6 +22,7 @@
 #include <vector>
 
 #include "optimize/coupling/coupling_config.h"
+#include "sweep/mpi_runner.h"
 #include "sweep/sweep_config.h"
 #include "sweep/sweep_runner.h"
 #include "sweep/sweep_table.h"
@@ -74,6 +78,29 @@ int main(int argc, char** argv) {
       sweep::LoadSweepConfig(root + "/datasets/studies/mill5_lhs.toml", scene);
   sweep::CaseList cases = config.Cases();
   cases.resize(std::min<size_t>(cases.size(), static_cast<size_t>(case_count)));
+  const sweep::MpiSession mpi;
+  if (std::getenv("OMPI_COMM_WORLD_SIZE") != nullptr) {
+    const auto evaluate =
+        sweep::SceneCaseFunction(scene, config.Parameters(), sweep::StudySimulationOptions());
+    double best_s = 1e300;
+    std::vector<sweep::CaseResult> results;
+    for (int r = 0; r < repeats; ++r) {
+      sweep::RunnerSummary summary;
+      results = sweep::RunCasesDistributed(mpi, evaluate, cases, sweep::RunnerOptions{}, &summary);
+      best_s = std::min(best_s, summary.wall_time_s);
+    }
+    if (!mpi.root()) return 0;
+    const double rate = cases.size() / best_s;
+    std::printf(
+        "MPI ranks %d (1 thread each): %.0f simulations/s, %.0f per rank (%zu cases, "
+        "min of %d)\n",
+        mpi.size(), rate, rate / mpi.size(), cases.size(), repeats);
+    const auto serial = sweep::RunCases(evaluate, cases, sweep::RunnerOptions{});
+    const bool same = sweep::FormatSweepCsv(scene, config, cases, results) ==
+                      sweep::FormatSweepCsv(scene, config, cases, serial);
+    std::printf("rows %s the serial run's\n", same ? "identical to" : "DIFFER from");
+    return same ? 0 : 1;
+  }
   std::printf("scene %s, study %s: %zu cases, %d samples each, min of %d runs\n",
               scene.name.c_str(), "mill5_lhs.toml", cases.size(), scene.SampleCount(), repeats);
   int failures = 0;
