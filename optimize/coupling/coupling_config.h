@@ -18,7 +18,7 @@
 //   min_frequency = 8.0             # Hz: lowest natural frequency, gaps closed, >= this
 //
 //   [optimizer]                     # optional
-//   global_evaluations = 200        # DIRECT-L budget, >= 1
+//   global_evaluations = 200        # DIRECT-L budget, >= 1 (NLopt may overshoot by a few)
 //   local = "bobyqa"                # bobyqa | cobyla | none
 //   local_evaluations = 100         # polish budget, >= 1 unless local = "none"
 //   xtol = 1e-5                     # stopping step on the unit cube, in (0, 1)

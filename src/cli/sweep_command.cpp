@@ -1,5 +1,5 @@
-// millkit sweep SCENE.toml --config SWEEP.toml --out cases.csv [--plot kd.svg] [--threads N]
-//                [--quiet]
+// [mpirun -np N] millkit sweep SCENE.toml --config SWEEP.toml --out cases.csv [--plot kd.svg]
+//                [--threads N] [--quiet]
 // What-if sweep over named scene parameters (issue 5): one CSV row per case, Kd plots. The
 // configuration keys are documented in src/sweep/sweep_config.h.
 #include <iostream>
@@ -10,6 +10,7 @@
 #include "io/atomic_file.h"
 #include "io/input_error.h"
 #include "io/svg_plot.h"
+#include "sweep/mpi_runner.h"
 #include "sweep/sweep_config.h"
 #include "sweep/sweep_runner.h"
 #include "sweep/sweep_table.h"
@@ -27,9 +28,10 @@ struct SweepArgs {
 };
 
 void RunSweep(const SweepArgs& args) {
+  const sweep::MpiSession mpi;  // every rank parses and validates the same inputs
   sweep::RunnerOptions runner;
   runner.threads = args.threads;
-  runner.progress = args.quiet ? nullptr : &std::cerr;
+  runner.progress = args.quiet || !mpi.root() ? nullptr : &std::cerr;
   runner.Validate();
   const driveline::Scene scene = driveline::LoadScene(args.scene);
   const sweep::SweepConfig config = sweep::LoadSweepConfig(args.config, scene);
@@ -37,10 +39,13 @@ void RunSweep(const SweepArgs& args) {
   CheckOutputPaths({{"--out", args.out}, {"--plot", args.plot}});
 
   sweep::RunnerSummary summary;
-  const auto results = sweep::RunCases(
-      sweep::SceneCaseFunction(scene, config.Parameters(), sweep::StudySimulationOptions()), cases,
-      runner, &summary);
-  std::cerr << "sweep: " << summary.BriefReport() << "\n";
+  const auto results = sweep::RunCasesDistributed(
+      mpi, sweep::SceneCaseFunction(scene, config.Parameters(), sweep::StudySimulationOptions()),
+      cases, runner, &summary);
+  if (!mpi.root()) return;  // rank 0 reports and writes
+  std::cerr << "sweep: " << summary.BriefReport();
+  if (mpi.size() > 1) std::cerr << " per rank, " << mpi.size() << " MPI ranks";
+  std::cerr << "\n";
   if (summary.failed > 0) {
     std::cerr << "sweep: " << summary.failed
               << " case(s) failed; each is reported in its row (status, message)\n";
@@ -70,7 +75,7 @@ void AddSweepCommand(CLI::App& app) {
   command->add_option("--out", args->out, "Cases CSV, one row per case (written atomically)")
       ->required();
   command->add_option("--plot", args->plot, "SVG of Kd against each swept parameter");
-  command->add_option("--threads", args->threads, "Worker threads (default 1)");
+  command->add_option("--threads", args->threads, "Worker threads (per MPI rank; default 1)");
   command->add_flag("--quiet", args->quiet, "No progress line on stderr");
   command->callback([args] { RunSweep(*args); });
 }

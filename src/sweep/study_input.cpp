@@ -15,7 +15,14 @@ driveline::SceneParameter ReadParameterName(const TomlSection& section, const st
 }
 
 void RequireInPhysicalRange(const TomlSection& section, const std::string& key,
-                            const driveline::SceneParameter& parameter, double value) {
+                            const driveline::SceneParameter& parameter, double value,
+                            const driveline::Scene& scene) {
+  if (parameter.kind == driveline::SceneParameter::Kind::kBiteTime &&
+      !(value >= 0.0 && value < scene.duration_s)) {
+    section.Fail(key, "bite_time must lie in [0, duration = " + FormatNumber(scene.duration_s) +
+                          ") so that the load starts within the run (got " + FormatNumber(value) +
+                          ")");
+  }
   const driveline::ParameterRange range = driveline::PhysicalRange(parameter.kind);
   const bool above = range.lower_inclusive ? value >= range.lower : value > range.lower;
   if (above && value <= range.upper) return;
@@ -47,8 +54,8 @@ SweepDimension ReadParameterRange(const TomlSection& section, const driveline::S
   }
   d.lower = section.RequiredNumber("lower");
   d.upper = section.RequiredNumber("upper");
-  RequireInPhysicalRange(section, "lower", d.parameter, d.lower);
-  RequireInPhysicalRange(section, "upper", d.parameter, d.upper);
+  RequireInPhysicalRange(section, "lower", d.parameter, d.lower, scene);
+  RequireInPhysicalRange(section, "upper", d.parameter, d.upper, scene);
   if (d.lower == d.upper) {
     section.Fail("upper", "empty range: lower = upper = " + FormatNumber(d.lower) +
                               " (set a fixed value in the scene instead)");

@@ -18,9 +18,12 @@ namespace millkit::sweep {
 driveline::SceneParameter ReadParameterName(const TomlSection& section, const std::string& key,
                                             const driveline::Scene& scene);
 
-// Throws unless `value` lies in the physical range of the parameter's kind (e.g. damping >= 0).
+// Throws unless `value` lies in the physical range of the parameter's kind (e.g. damping >= 0)
+// and, for bite_time, before the end of the run (a load that starts after it leaves no final
+// load to scale and no Kd).
 void RequireInPhysicalRange(const TomlSection& section, const std::string& key,
-                            const driveline::SceneParameter& parameter, double value);
+                            const driveline::SceneParameter& parameter, double value,
+                            const driveline::Scene& scene);
 
 // Keys `name`, `lower`, `upper` (required) and `scale` ("linear" | "log", optional) of a range
 // table. lower == upper is an empty range, lower > upper reversed bounds; both must lie in the

@@ -30,7 +30,7 @@ SweepDimension ReadDimension(const TomlSection& section, const driveline::Scene&
   d.parameter = ReadParameterName(section, "name", scene);
   d.values = section.NumberArray("values");
   if (d.values.empty()) section.Fail("values", "empty: give at least one value");
-  for (double v : d.values) RequireInPhysicalRange(section, "values", d.parameter, v);
+  for (double v : d.values) RequireInPhysicalRange(section, "values", d.parameter, v, scene);
   return d;
 }
 

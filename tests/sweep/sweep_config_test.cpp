@@ -95,6 +95,10 @@ TEST_CASE("sweep configuration errors name the file, the key and the rule",
                                    "values = [0.5, 1.5]\n"),
                Contains("key 'values'") && Contains("[-1, 1]"));
   }
+  SECTION("a bite after the end of the run") {
+    CHECK_THAT(ErrorOf(kGridHead + "[[parameter]]\nname = \"bite_time\"\nvalues = [0.1, 0.5]\n"),
+               Contains("key 'values'") && Contains("[0, duration = 0.5)"));
+  }
   SECTION("log scale from zero") {
     CHECK_THAT(ErrorOf(kLhsHead + param + "lower = 0\nupper = 1\nscale = \"log\"\n"),
                Contains("log scale needs lower > 0"));
