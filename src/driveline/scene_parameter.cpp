@@ -48,7 +48,13 @@ void SceneParameter::Set(double value, Scene* scene) const {
     case Kind::kGapPosition: scene->links[index].gap_position = value; return;
     case Kind::kInertia: scene->masses[index].inertia_kg_m2 = value; return;
     case Kind::kLoad: {
-      const double factor = value / SummedLoadAtEnd(*scene, index);
+      const double current = SummedLoadAtEnd(*scene, index);
+      if (current == 0.0) {
+        throw InputError("parameter '" + name + "': mass '" + scene->masses[index].name +
+                         "' carries no torque at the end of the run (a bite_time after the "
+                         "duration?), so its load cannot be scaled");
+      }
+      const double factor = value / current;
       for (auto& source : scene->torques) {
         if (source.mass != index) continue;
         for (double& v : source.values_Nm) v *= factor;

@@ -25,6 +25,7 @@ struct SceneParameter {
   std::string unit;   // for tables and plots
 
   double Get(const Scene& scene) const;
+  // Throws InputError for a load on a mass whose final torque is zero (nothing to scale).
   void Set(double value, Scene* scene) const;
 };
 

@@ -8,6 +8,8 @@ driveline::SimulationOptions StudySimulationOptions() {
   driveline::SimulationOptions options;
   options.solver = driveline::SolverKind::kExact;
   options.estimate_error = false;
+  // Kd needs only each link's peak |torque|, which every result carries.
+  options.keep_samples = false;
   return options;
 }
 
