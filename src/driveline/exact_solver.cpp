@@ -14,7 +14,7 @@
 // Events: a watched surface g = r·z changes side within a step. Each step first bounds every
 // watched surface from its values and slopes at the two ends: with u = s/τ, the cubic Hermite
 // interpolant H differs from g by at most max|g⁗| τ⁴ u²(1 − u)²/4!, and
-// |g⁗| = |r M³ v| <= ‖r M³‖₁ e^{‖M‖∞ τ} ‖v(t)‖∞. A surface that the motion cannot reach within
+// |g⁗| = |r M³ v| <= |r| |M|³ 1 · e^{‖M‖∞ τ} ‖v(t)‖∞. A surface that the motion cannot reach within
 // the step (no path in M's graph from a moving component to the surface's) stays where it is.
 // Only a surface whose bound reaches below zero is looked at exactly: on the step's Taylor series
 // it is a polynomial in s, searched left to right with the same bound on halved intervals, and its
@@ -39,6 +39,15 @@ namespace {
 
 using numerics::PaddedMatrix;
 
+// The solver's hot paths, compiled for x86-64-v3 (AVX2, FMA) as well as the baseline and chosen
+// at load time: their short loops over a dozen components vectorise 4 wide. (Results differ
+// between the two in the last bits, FMA.)
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define MILLKIT_HOT __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define MILLKIT_HOT
+#endif
+
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 // A surface that dips past zero by less than this fraction of its typical magnitude (times the
 // state's size in scaled units) has not crossed: roundoff, or a graze.
@@ -49,13 +58,11 @@ constexpr double kStallUlps = 64.0;
 constexpr int kMaxStalledEvents = 64;
 constexpr int kMaxRootIterations = 100;
 constexpr int kMaxTaylorTerms = 60;
-// Building [Φ; S; R S] costs about as much as 30 Taylor steps; phase sets that last a few samples
-// (contact transients, brief separations) never pay it.
-constexpr long kStepsBeforeCaching = 16;
+// Building [Φ; S; R S] costs about as much as 10–20 Taylor steps; phase sets that last a few
+// samples (contact transients, brief separations) never pay it.
+constexpr long kStepsBeforeCaching = 8;
 // Halvings of one polynomial before a surface that keeps within its bound is called a graze.
 constexpr int kMaxSearchDepth = 60;
-
-using Mask = std::vector<std::uint64_t>;
 
 // Typical magnitude of each component of z: states from the model, forcing from the sources.
 Eigen::VectorXd AugmentedScale(const Model& model) {
@@ -88,6 +95,11 @@ double CachedStepLength(const Scene& scene, const SimulationOptions& options,
   for (size_t k = 1; k < times.size(); ++k) gaps[k - 1] = times[k] - times[k - 1];
   std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
   return gaps[gaps.size() / 2];
+}
+
+// A plain loop: std::copy of a dozen doubles becomes a call to memmove.
+inline void Copy(const double* __restrict from, int n, double* __restrict to) {
+  for (int i = 0; i < n; ++i) to[i] = from[i];
 }
 
 // Minimum of k0 + k1 u + k2 u² + k3 u³ over [lo, hi].
@@ -136,25 +148,25 @@ inline double QuickMinimum(double a0, double b0, double a1, double b1, double c)
 // Everything the solver needs of one phase set, in scaled coordinates. Vectors are padded to a
 // multiple of 4 (numerics::PaddedMatrix) with zeros.
 struct PhaseData {
-  Eigen::MatrixXd m;  // D⁻¹ M D
-  PaddedMatrix m_padded;  // m, for v = m y
+  PaddedMatrix m_padded;  // m = D⁻¹ M D, for v = m y
   PaddedMatrix m_active;  // m on the moving components (see active_)
   double norm_inf = 0.0;  // ‖m‖∞
   std::vector<Model::WatchedSurface> watched;
-  Eigen::MatrixXd rows;         // watched surfaces over y, signed: R = side · G D (>= 0 on the
-                                // side the phases describe)
-  PaddedMatrix rows_padded;     // R, for the surfaces' slopes R v
-  PaddedMatrix observe;         // [R; T D]: watched surfaces, then scene link torques
-  std::vector<double> tolerance;  // kCrossingTolerance ‖R_w‖₁: a crossing's least depth at
-                                  // typical state magnitudes (times the state's size in steps)
-  std::vector<double> bound3;   // ‖R_w m³‖₁: |g⁗| <= bound3 · ‖v‖∞
-  std::vector<Mask> reach;      // per surface: the components whose motion can reach it
+  PaddedMatrix rows;     // watched surfaces over y, signed: R = side · G D (>= 0 on the side the
+                         // phases describe), for the surfaces' slopes R v
+  PaddedMatrix observe;  // [R; T D]: watched surfaces, then scene link torques
+  // Per watched surface: kCrossingTolerance ‖R_w‖₁ (a crossing's least depth at typical state
+  // magnitudes, times the state's size in the step), and ‖R_w m³‖₁ (|g⁗| <= bound3 · ‖v‖∞).
+  std::vector<double> tolerance;
+  std::vector<double> bound3;
+  std::vector<std::uint64_t> reach;  // per surface, `words` words: the components whose motion
+                                     // can reach it (built on first need: EnsureReach)
   // The full step over h in increment form, built after kStepsBeforeCaching full steps.
   long full_steps = 0;
   bool has_step = false;
-  PaddedMatrix step;     // [Φ; 0; S; 0; R S] over v (the zero rows pad Φ and S to 4)
-  double growth = 1.0;   // e^{‖m‖∞ h}: bounds ‖v‖ over a step by growth · ‖v(t)‖
-  double defect = 0.0;   // roundoff of one cached step, relative to the state scale
+  PaddedMatrix step;    // [Φ; 0; S; 0; R S] over the active part of v (zero rows pad to 4)
+  double growth = 1.0;  // e^{‖m‖∞ h}: bounds ‖v‖ over a step by growth · ‖v(t)‖
+  double defect = 0.0;  // roundoff of one cached step, relative to the state scale
 };
 
 // Taylor series of one step in pieces: on piece p (start z_p, v_p, length dt),
@@ -232,7 +244,7 @@ bool FirstBelow(const Polynomial& poly, double tol, double limit, double resolut
       return true;
     }
     const double width = iv.b - iv.a;
-    const double c = poly.fourth * width * width * width * width / 24.0;
+    const double c = poly.fourth * width * width * width * width * (1.0 / 24.0);
     if (EnvelopeMinimum(iv.pa, iv.da * width, iv.pb, iv.db * width, c) >= -tol) continue;
     const bool finest = width <= resolution || iv.depth >= kMaxSearchDepth;
     if (iv.pb < -tol &&
@@ -280,47 +292,48 @@ double RootPastSurface(const Polynomial& poly, double lo, double hi, double reso
 
 // For each surface row (over the first rows.cols() components), the components j from which M's
 // graph (j feeds i when M_ij != 0) leads to a component the row reads: the only ones whose motion
-// can move the surface.
-std::vector<Mask> Reach(const Eigen::MatrixXd& m, const Eigen::MatrixXd& rows) {
+// can move the surface. `words` 64-bit words per row into *reach; *inputs is work space.
+void Reach(const Eigen::MatrixXd& m, const Eigen::MatrixXd& rows, int words,
+           std::vector<std::uint64_t>* inputs_storage, std::vector<int>* stack_storage,
+           std::vector<std::uint64_t>* reach_storage) {
   const int n = static_cast<int>(m.rows());
-  const int words = (n + 63) / 64;
-  auto bit = [](int i) { return std::uint64_t{1} << (i % 64); };
-  std::vector<std::uint64_t> inputs(static_cast<size_t>(n) * words, 0);  // row i: its inputs
-  for (int j = 0; j < n; ++j) {
+  inputs_storage->assign(static_cast<size_t>(n) * words, 0);  // row i: the components feeding i
+  std::uint64_t* inputs = inputs_storage->data();
+  for (int j = 0; j < n; ++j) {  // branch-free: the zero pattern is irregular
+    const double* column = m.col(j).data();
+    const std::uint64_t bit = std::uint64_t{1} << (j % 64);
     for (int i = 0; i < n; ++i) {
-      if (m(i, j) != 0.0) inputs[static_cast<size_t>(i) * words + j / 64] |= bit(j);
+      inputs[static_cast<size_t>(i) * words + j / 64] |= (column[i] != 0.0) ? bit : 0;
     }
   }
-  std::vector<Mask> reach(rows.rows(), Mask(words, 0));
-  std::vector<int> stack;
-  stack.reserve(n);
+  reach_storage->assign(static_cast<size_t>(rows.rows()) * words, 0);
+  stack_storage->resize(n);
+  int* stack = stack_storage->data();
   for (int w = 0; w < rows.rows(); ++w) {
-    Mask& r = reach[w];
-    stack.clear();
+    std::uint64_t* r = reach_storage->data() + static_cast<size_t>(w) * words;
+    int top = 0;
     for (int i = 0; i < rows.cols(); ++i) {
       if (rows(w, i) != 0.0) {
-        r[i / 64] |= bit(i);
-        stack.push_back(i);
+        r[i / 64] |= std::uint64_t{1} << (i % 64);
+        stack[top++] = i;
       }
     }
-    while (!stack.empty()) {
-      const int i = stack.back();
-      stack.pop_back();
+    while (top > 0) {
+      const int i = stack[--top];
       for (int word = 0; word < words; ++word) {
         std::uint64_t fresh = inputs[static_cast<size_t>(i) * words + word] & ~r[word];
         r[word] |= fresh;
         while (fresh != 0) {
-          stack.push_back(64 * word + __builtin_ctzll(fresh));
+          stack[top++] = 64 * word + __builtin_ctzll(fresh);
           fresh &= fresh - 1;
         }
       }
     }
   }
-  return reach;
 }
 
-bool Disjoint(const Mask& a, const Mask& b) {
-  for (size_t i = 0; i < a.size(); ++i) {
+bool Disjoint(const std::uint64_t* a, const std::uint64_t* b, int words) {
+  for (int i = 0; i < words; ++i) {
     if ((a[i] & b[i]) != 0) return false;
   }
   return true;
@@ -334,7 +347,8 @@ class ExactIntegrator {
         n_(model.augmented_size()),
         stride_(PaddedMatrix::Padded(model.augmented_size())),
         active_(model.augmented_size() - model.forcing_size()),
-        active_stride_(PaddedMatrix::Padded(active_)) {}
+        active_stride_(PaddedMatrix::Padded(active_)),
+        words_((model.augmented_size() + 63) / 64) {}
 
   SimulationResult Run();
 
@@ -362,73 +376,104 @@ class ExactIntegrator {
   const int active_stride_;
   std::unordered_map<Phases, PhaseData> cache_;
   double h_ = 0.0;
-  Eigen::VectorXd scale_;
+  Eigen::VectorXd scale_, inverse_scale_;
   SimulationResult result_;
   Series series_;
   std::vector<double> work_;
   std::vector<Polynomial> polynomials_;
+  std::vector<Model::KnownSide> known_;  // the side of the surface crossed at an event
+  // Work space of Data().
+  const int words_;  // 64-bit words of a component mask
+  Eigen::MatrixXd m_scratch_, observe_scratch_;
+  PaddedMatrix transposed_scratch_;
+  std::vector<double> vector_scratch_;
+  std::vector<std::uint64_t> inputs_scratch_;
+  std::vector<int> stack_scratch_;
+  // Work space of BuildStep().
+  Eigen::MatrixXd build_m_, build_rows_, build_s_, build_phi_, build_step_, build_product_;
   // Output map of kept samples: speed of each scene mass, twist of each flexible scene link.
   std::vector<int> speed_index_;
   std::vector<int> twist_index_;  // −1 for rigid links
 };
 
-PhaseData* ExactIntegrator::Data(const Phases& phases) {
+MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
   auto it = cache_.find(phases);
   if (it != cache_.end()) return &it->second;
+  // Scratch matrices are members: a run meets a few dozen phase sets, each built once.
   PhaseData data;
   const Eigen::MatrixXd system = model_.SystemMatrix(phases);
-  data.m.resize(n_, n_);
+  Eigen::MatrixXd& m = m_scratch_;
+  m.resize(n_, n_);
   for (int j = 0; j < n_; ++j) {
-    for (int i = 0; i < n_; ++i) data.m(i, j) = system(i, j) * (scale_[j] / scale_[i]);
+    for (int i = 0; i < n_; ++i) m(i, j) = system(i, j) * scale_[j] * inverse_scale_[i];
   }
-  data.m_padded.Assign(data.m);
-  data.m_active.Assign(data.m.topLeftCorner(active_, active_));
-  data.norm_inf = data.m.cwiseAbs().rowwise().sum().maxCoeff();
+  data.m_padded.Assign(m);
+  data.m_active.Assign(m.topLeftCorner(active_, active_));
+  data.norm_inf = 0.0;
+  for (int i = 0; i < n_; ++i) {
+    double row = 0.0;
+    for (int j = 0; j < n_; ++j) row += std::abs(m(i, j));
+    data.norm_inf = std::max(data.norm_inf, row);
+  }
   data.growth = std::exp(std::min(data.norm_inf * h_, 700.0));
   data.watched = model_.Watched(phases);
   const int count = static_cast<int>(data.watched.size());
   const Eigen::MatrixXd torque = model_.LinkTorqueRows(phases, system);
   // Surfaces and torques do not read the input slopes (Model::surfaces, LinkTorqueRows).
-  Eigen::MatrixXd observe(count + torque.rows(), active_);
+  Eigen::MatrixXd& observe = observe_scratch_;
+  observe.resize(count + torque.rows(), active_);
   for (int j = 0; j < active_; ++j) {
     for (int i = 0; i < count; ++i) {
-      observe(i, j) = data.watched[i].side * model_.surfaces()(data.watched[i].index, j) * scale_[j];
+      observe(i, j) =
+          data.watched[i].side * model_.surfaces()(data.watched[i].index, j) * scale_[j];
     }
     for (int l = 0; l < torque.rows(); ++l) observe(count + l, j) = torque(l, j) * scale_[j];
   }
-  data.rows = observe.topRows(count);
-  data.rows_padded.Assign(data.rows);
+  data.rows.Assign(observe.topRows(count));
   data.observe.Assign(observe);
-  // |g⁗| bound: ‖R_w m³‖₁, as (mᵀ)³ R_wᵀ.
+  // |g⁗| = |R_w m³ v| with v zero in the slopes, whose rows of m are zero: only the active block
+  // counts. ‖R_w m_aa³‖₁ <= |R_w| (|m_aa|³ 1), one vector for all surfaces.
   data.tolerance.resize(count);
   data.bound3.resize(count);
-  const PaddedMatrix transposed(data.m.transpose());
-  std::vector<double> a(stride_, 0.0), b(stride_, 0.0);
-  for (int w = 0; w < count; ++w) {
-    std::fill(a.begin(), a.end(), 0.0);
-    for (int i = 0; i < active_; ++i) a[i] = data.rows(w, i);
-    data.tolerance[w] = kCrossingTolerance * numerics::SumAbs(a.data(), stride_);
-    transposed.Apply(a.data(), b.data());
-    transposed.Apply(b.data(), a.data());
-    transposed.Apply(a.data(), b.data());
-    data.bound3[w] = numerics::SumAbs(b.data(), stride_);
+  {
+    Eigen::MatrixXd& abs_m = build_product_;
+    abs_m = m.topLeftCorner(active_, active_).cwiseAbs();
+    transposed_scratch_.Assign(abs_m);
+    std::vector<double>& a = vector_scratch_;
+    a.assign(2 * active_stride_, 0.0);
+    double* b = a.data() + active_stride_;
+    for (int i = 0; i < active_; ++i) a[i] = 1.0;
+    transposed_scratch_.Apply(a.data(), b);
+    transposed_scratch_.Apply(b, a.data());
+    transposed_scratch_.Apply(a.data(), b);
+    for (int w = 0; w < count; ++w) {
+      double size = 0.0, bound = 0.0;
+      for (int i = 0; i < active_; ++i) {
+        size += std::abs(observe(w, i));
+        bound += std::abs(observe(w, i)) * b[i];
+      }
+      data.tolerance[w] = kCrossingTolerance * size;
+      data.bound3[w] = bound;
+    }
   }
-  data.reach = Reach(data.m, data.rows);
   return &cache_.emplace(phases, std::move(data)).first->second;
 }
 
 void ExactIntegrator::BuildStep(PhaseData* data) {
-  Eigen::MatrixXd s, phi;
-  numerics::ExpAndPhi1(data->m, h_, &s, &phi);
-  const int count = static_cast<int>(data->rows.rows());
-  // Over the active components of v (the rest is zero): Φ, S and R S.
+  // m is block upper triangular over [active; slopes] with zero slope rows, so the active blocks
+  // of S and Φ are those of the active block of m.
   const int a = active_, as = active_stride_;
-  Eigen::MatrixXd step = Eigen::MatrixXd::Zero(2 * as + count, a);
-  step.topRows(a) = phi.topLeftCorner(a, a);
-  step.middleRows(as, a) = s.topLeftCorner(a, a);
-  Eigen::MatrixXd rows_s;
-  numerics::Multiply(data->rows, s.topLeftCorner(a, a), &rows_s);
-  step.bottomRows(count) = rows_s;
+  Eigen::MatrixXd &m = build_m_, &rows = build_rows_, &s = build_s_, &phi = build_phi_;
+  data->m_active.CopyTo(&m);
+  data->rows.CopyTo(&rows);
+  const int count = static_cast<int>(rows.rows());
+  numerics::ExpAndPhi1(m, h_, &s, &phi);
+  Eigen::MatrixXd& step = build_step_;
+  step.setZero(2 * as + count, a);
+  step.topRows(a) = phi;
+  step.middleRows(as, a) = s;
+  numerics::Multiply(rows, s, &build_product_);
+  step.bottomRows(count) = build_product_;
   data->step.Assign(step);
   data->has_step = true;
   ++result_.summary.phase_sets;
@@ -437,13 +482,13 @@ void ExactIntegrator::BuildStep(PhaseData* data) {
   // estimates a step's roundoff, z's through Φ v (‖v‖ <= ‖m‖∞ ‖z‖), v's through S and one more
   // step of Φ ≈ h.
   Eigen::MatrixXd s2, phi2;
-  numerics::ExpAndPhi1(data->m, h_, &s2, &phi2, 1);
+  numerics::ExpAndPhi1(m, h_, &s2, &phi2, 1);
   data->defect = data->norm_inf * ((phi - phi2).cwiseAbs().rowwise().sum().maxCoeff() +
                                    (s - s2).cwiseAbs().rowwise().sum().maxCoeff() * h_);
 }
 
-void ExactIntegrator::ExpandStep(const PhaseData& data, const double* z, const double* v,
-                                 double tau, double* z1, double* v1) {
+MILLKIT_HOT void ExactIntegrator::ExpandStep(const PhaseData& data, const double* z,
+                                             const double* v, double tau, double* z1, double* v1) {
   Series& series = series_;
   series.stride = stride_;
   series.pieces = std::max(1, static_cast<int>(std::ceil(data.norm_inf * tau)));
@@ -451,8 +496,8 @@ void ExactIntegrator::ExpandStep(const PhaseData& data, const double* z, const d
   series.first.resize(series.pieces);
   series.terms.resize(series.pieces);
   series.z_start.resize(static_cast<size_t>(series.pieces) * stride_);
-  std::copy(z, z + stride_, z1);
-  std::copy(v, v + stride_, v1);
+  Copy(z, stride_, z1);
+  Copy(v, stride_, v1);
   int used = 0;  // vectors stored in series.u
   auto vector = [&](int index) {
     const size_t need = static_cast<size_t>(index + 1) * stride_;
@@ -460,9 +505,9 @@ void ExactIntegrator::ExpandStep(const PhaseData& data, const double* z, const d
     return series.u.data() + static_cast<size_t>(index) * stride_;
   };
   for (int p = 0; p < series.pieces; ++p) {
-    std::copy(z1, z1 + stride_, series.z_start.data() + static_cast<size_t>(p) * stride_);
+    Copy(z1, stride_, series.z_start.data() + static_cast<size_t>(p) * stride_);
     series.first[p] = used;
-    std::copy(v1, v1 + stride_, vector(used));
+    Copy(v1, stride_, vector(used));
     int terms = 1;
     // Terms until they no longer change v at the piece's start scale (‖v‖ grows by at most e
     // over a piece, and a cancelling sum is no more accurate than that).
@@ -472,12 +517,15 @@ void ExactIntegrator::ExpandStep(const PhaseData& data, const double* z, const d
         double* u = vector(used + k);
         data.m_active.Apply(u - stride_, u);
         const double factor = series.dt / k;
+        double size = 0.0;
         for (int i = 0; i < active_stride_; ++i) {
           u[i] *= factor;
           v1[i] += u[i];
+          const double magnitude = std::abs(u[i]);
+          size = magnitude > size ? magnitude : size;
         }
         terms = k + 1;
-        if (numerics::MaxAbsPadded(u, active_stride_) <= 0x1p-53 * start) break;
+        if (size <= 0x1p-53 * start) break;
       }
     }
     series.terms[p] = terms;
@@ -495,32 +543,37 @@ void ExactIntegrator::EvaluateSeries(int p, double s, double* z, double* v) cons
   const Series& series = series_;
   const int terms = series.terms[p];
   const double* z0 = series.z_start.data() + static_cast<size_t>(p) * stride_;
-  for (int i = 0; i < stride_; ++i) {
-    double value = 0.0, integral = 0.0;
-    for (int k = terms - 1; k >= 0; --k) {
-      const double u = series.U(p, k)[i];
-      value = value * s + u;
-      integral = integral * s + u / (k + 1);
+  // Horner over the terms, each a whole vector: v = Σ u_k s^k, z = z0 + dt s Σ u_k s^k/(k+1).
+  std::fill(v, v + stride_, 0.0);
+  std::fill(z, z + stride_, 0.0);
+  for (int k = terms - 1; k >= 0; --k) {
+    const double* u = series.U(p, k);
+    const double inverse = 1.0 / (k + 1);
+    for (int i = 0; i < active_stride_; ++i) {
+      v[i] = v[i] * s + u[i];
+      z[i] = z[i] * s + u[i] * inverse;
     }
-    v[i] = value;
-    z[i] = z0[i] + series.dt * s * integral;
   }
+  const double factor = series.dt * s;
+  for (int i = 0; i < stride_; ++i) z[i] = z0[i] + factor * z[i];
 }
 
-bool ExactIntegrator::FindEvent(const PhaseData& data, const std::vector<int>& candidates,
-                                const std::vector<double>& tolerance, double resolution_s,
-                                int* piece, double* s_event, int* crossed) {
+MILLKIT_HOT bool ExactIntegrator::FindEvent(const PhaseData& data,
+                                            const std::vector<int>& candidates,
+                                            const std::vector<double>& tolerance,
+                                            double resolution_s, int* piece, double* s_event,
+                                            int* crossed) {
   const Series& series = series_;
-  work_.resize(std::max<size_t>(work_.size(), data.rows_padded.ld()));
+  work_.resize(std::max<size_t>(work_.size(), data.rows.ld()));
   polynomials_.resize(data.watched.size());
   for (int p = 0; p < series.pieces; ++p) {
     const int terms = series.terms[p];
     for (int w : candidates) polynomials_[w].c.assign(terms + 1, 0.0);
     // c_0 = R z_p, c_{k+1} = dt·R u_k / (k + 1) (R signed).
-    data.rows_padded.Apply(series.z_start.data() + static_cast<size_t>(p) * stride_, work_.data());
+    data.rows.Apply(series.z_start.data() + static_cast<size_t>(p) * stride_, work_.data());
     for (int w : candidates) polynomials_[w].c[0] = work_[w];
     for (int k = 0; k < terms; ++k) {
-      data.rows_padded.Apply(series.U(p, k), work_.data());
+      data.rows.Apply(series.U(p, k), work_.data());
       const double factor = series.dt / (k + 1);
       for (int w : candidates) polynomials_[w].c[k + 1] = factor * work_[w];
     }
@@ -545,10 +598,10 @@ bool ExactIntegrator::FindEvent(const PhaseData& data, const std::vector<int>& c
   return false;
 }
 
-void ExactIntegrator::Record(OutputRecorder* recorder, int k, const double* y,
-                             const double* torque) {
+MILLKIT_HOT void ExactIntegrator::Record(OutputRecorder* recorder, int k, const double* y,
+                                         const double* torque) {
   const int links = static_cast<int>(twist_index_.size());
-  std::copy(torque, torque + links, recorder->torque(k));
+  Copy(torque, links, recorder->torque(k));
   if (recorder->keep_samples()) {
     double* speed = recorder->speed(k);
     for (size_t i = 0; i < speed_index_.size(); ++i) {
@@ -556,15 +609,14 @@ void ExactIntegrator::Record(OutputRecorder* recorder, int k, const double* y,
     }
     double* twist = recorder->twist(k);
     for (int l = 0; l < links; ++l) {
-      twist[l] = twist_index_[l] >= 0
-                     ? scale_[twist_index_[l]] * y[twist_index_[l]]
-                     : torque[l] / model_.scene().links[l].stiffness_Nm_per_rad;
+      twist[l] = twist_index_[l] >= 0 ? scale_[twist_index_[l]] * y[twist_index_[l]]
+                                      : torque[l] / model_.scene().links[l].stiffness_Nm_per_rad;
     }
   }
   recorder->Commit(k);
 }
 
-SimulationResult ExactIntegrator::Run() {
+MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
   const auto started = std::chrono::steady_clock::now();
   const Scene& scene = model_.scene();
   SimulationSummary& summary = result_.summary;
@@ -575,6 +627,7 @@ SimulationResult ExactIntegrator::Run() {
   const int samples = recorder.size();
   h_ = CachedStepLength(scene, options_, times);
   scale_ = AugmentedScale(model_);
+  inverse_scale_ = scale_.cwiseInverse();
   const int links = static_cast<int>(scene.links.size());
   for (size_t i = 0; i < scene.masses.size(); ++i) {
     speed_index_.push_back(model_.SpeedIndex(model_.reduction().group_of_mass[i]));
@@ -602,12 +655,12 @@ SimulationResult ExactIntegrator::Run() {
   std::vector<double> g0(max_ld), dg0(max_ld), end(max_ld), dg1(max_ld), out(max_ld);
   for (int i = 0; i < n_; ++i) y[i] = z0[i] / scale_[i];
   Eigen::VectorXd unscaled(n_), unscaled_v(n_), unscaled_a(n_);
-  Mask moving((n_ + 63) / 64);
+  std::vector<std::uint64_t> moving(words_);
   double v_norm = 0.0;
   auto refresh = [&] {  // v, g0, dg0 and ‖v‖ from y in the current phases
     data->m_padded.Apply(y.data(), v.data());
-    data->rows_padded.Apply(y.data(), g0.data());
-    data->rows_padded.Apply(v.data(), dg0.data());
+    data->rows.Apply(y.data(), g0.data());
+    data->rows.Apply(v.data(), dg0.data());
     v_norm = numerics::MaxAbsPadded(v.data(), stride_);
   };
   refresh();
@@ -655,12 +708,11 @@ SimulationResult ExactIntegrator::Run() {
         v1[i] = out[active_stride_ + i];
       }
       for (int i = active_stride_; i < stride_; ++i) y1[i] = y[i];  // (v1 stays zero there)
-      std::copy(out.begin() + 2 * active_stride_, out.begin() + 2 * active_stride_ + count,
-                dg1.begin());
+      Copy(out.data() + 2 * active_stride_, count, dg1.data());
       summary.error_estimate += data->defect;
     } else {
       ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
-      data->rows_padded.Apply(v1.data(), dg1.data());
+      data->rows.Apply(v1.data(), dg1.data());
       expanded = true;
       growth = std::exp(std::min(data->norm_inf * tau, 700.0));
     }
@@ -676,14 +728,23 @@ SimulationResult ExactIntegrator::Run() {
     // Which watched surfaces can cross within the step: the bounds first, exact work after. The
     // surfaces are signed (>= 0 on the watched side); the first pass is branch-free over all of
     // them with the smallest tolerance (state size 1), the rest only for those it does not clear.
-    const double c_factor = growth * v_norm * tau * tau * tau * tau / 24.0;
-    bool any = false;
-    for (int w = 0; w < count; ++w) {
-      slack[w] = QuickMinimum(g0[w], dg0[w] * tau, end[w], dg1[w] * tau,
-                              data->bound3[w] * c_factor) +
-                 data->tolerance[w];
-      any |= slack[w] < 0.0;
+    const double c_factor = growth * v_norm * tau * tau * tau * tau * (1.0 / 24.0);
+    double least = 0.0;
+    {
+      const double* __restrict a0 = g0.data();
+      const double* __restrict a1 = end.data();
+      const double* __restrict d0 = dg0.data();
+      const double* __restrict d1 = dg1.data();
+      const double* __restrict bound3 = data->bound3.data();
+      const double* __restrict tol = data->tolerance.data();
+      double* __restrict out_slack = slack.data();
+      for (int w = 0; w < count; ++w) {
+        out_slack[w] =
+            QuickMinimum(a0[w], d0[w] * tau, a1[w], d1[w] * tau, bound3[w] * c_factor) + tol[w];
+        least = out_slack[w] < least ? out_slack[w] : least;
+      }
     }
+    const bool any = least < 0.0;
     candidates.clear();
     if (any) {
       const double size = std::max({1.0, numerics::MaxAbsPadded(y.data(), stride_),
@@ -707,15 +768,23 @@ SimulationResult ExactIntegrator::Run() {
           }
           moving_known = true;
         }
-        if (Disjoint(moving, data->reach[w])) continue;  // g is constant, and a1 >= −tolerance
+        // g is constant, and a1 >= −tolerance.
+        if (data->reach.empty()) {
+          Eigen::MatrixXd& m = m_scratch_;
+          data->m_padded.CopyTo(&m);
+          data->rows.CopyTo(&observe_scratch_);
+          Reach(m, observe_scratch_, words_, &inputs_scratch_, &stack_scratch_, &data->reach);
+        }
+        if (Disjoint(moving.data(), data->reach.data() + static_cast<size_t>(w) * words_, words_)) {
+          continue;
+        }
         if (EnvelopeMinimum(a0, b0, a1, b1, c) < -tolerance[w]) candidates.push_back(w);
       }
     }
 
     if (!candidates.empty()) {
       if (!expanded) ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
-      const double resolution_s =
-          kStallUlps * kEps * std::max(std::abs(t) + tau, h_) / series_.dt;
+      const double resolution_s = kStallUlps * kEps * std::max(std::abs(t) + tau, h_) / series_.dt;
       int piece = 0, crossed = -1;
       double s = 0.0;
       if (FindEvent(*data, candidates, tolerance, resolution_s, &piece, &s, &crossed)) {
@@ -730,8 +799,8 @@ SimulationResult ExactIntegrator::Run() {
           unscaled_a[i] = scale_[i] * out[i];
         }
         const Model::WatchedSurface surface = data->watched[crossed];
-        const Phases next =
-            model_.Classify(unscaled, unscaled_v, unscaled_a, {{surface.index, -surface.side}});
+        known_.assign(1, {surface.index, -surface.side});
+        const Phases next = model_.Classify(unscaled, unscaled_v, unscaled_a, known_);
         if (tau_event <= kStallUlps * kEps * std::max(std::abs(t), h_)) {
           if (++stalled > kMaxStalledEvents) {
             summary.message = "events do not advance time at t = " + std::to_string(t) +
@@ -758,14 +827,14 @@ SimulationResult ExactIntegrator::Run() {
       }
       if (!expanded) {  // the series' end replaced the cached step's: observe that one
         data->observe.Apply(y1.data(), end.data());
-        data->rows_padded.Apply(v1.data(), dg1.data());
+        data->rows.Apply(v1.data(), dg1.data());
       }
     }
 
     y.swap(y1);
     v.swap(v1);
-    std::copy(end.begin(), end.begin() + count, g0.begin());
-    std::copy(dg1.begin(), dg1.begin() + count, dg0.begin());
+    Copy(end.data(), count, g0.data());
+    Copy(dg1.data(), count, dg0.data());
     v_norm = v1_norm;
     t = target;
     if (at_breakpoint) {

@@ -439,8 +439,8 @@ std::vector<Model::WatchedSurface> Model::Watched(const Phases& phases) const {
   return watched;
 }
 
-LinkPhase Model::PhaseFromSides(int k, const std::vector<int>& side) const {
-  const int* s = side.data() + kLinkSurfaces * k;
+LinkPhase Model::PhaseFromSides(int k, const int* side) const {
+  const int* s = side + kLinkSurfaces * k;
   switch (scene_.contact) {
     case ContactLaw::kLinear:
       if (s[kS0] > 0) return LinkPhase::kPosSpringDamper;
@@ -468,10 +468,27 @@ Phases Model::Classify(const Eigen::VectorXd& z, const Eigen::VectorXd& zdot,
                        const Eigen::VectorXd& zddot,
                        const std::vector<KnownSide>& known_sides) const {
   const int count = surface_count();
-  std::vector<int> side(count);
-  const Eigen::VectorXd g = surfaces_ * z;
+  // Called at every switching event: work space on the stack for the usual sizes.
+  const int n = static_cast<int>(z.size());
+  constexpr int kStack = 128;
+  int stack_side[kStack];
+  double stack_values[3 * kStack];
+  std::vector<int> heap_side;
+  std::vector<double> heap_values;
+  int* side = stack_side;
+  double* values = stack_values;
+  if (count > kStack || n > kStack) {
+    heap_side.resize(count);
+    heap_values.resize(2 * count + n);
+    side = heap_side.data();
+    values = heap_values.data();
+  }
+  Eigen::Map<Eigen::VectorXd> g(values, count), scale(values + count, count);
+  Eigen::Map<Eigen::VectorXd> abs_z(values + 2 * count, n);
+  g.noalias() = surfaces_ * z;
   // The size of each surface's terms, |G| |z|: what "zero to roundoff" is measured against.
-  const Eigen::VectorXd scale = abs_surfaces_ * z.cwiseAbs();
+  abs_z = z.cwiseAbs();
+  scale.noalias() = abs_surfaces_ * abs_z;
   for (int j = 0; j < count; ++j) {
     const auto known = std::find_if(known_sides.begin(), known_sides.end(),
                                     [j](const KnownSide& k) { return k.surface == j; });

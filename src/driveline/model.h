@@ -152,7 +152,7 @@ class Model {
 
  private:
   void BuildSurfaces();
-  LinkPhase PhaseFromSides(int backlash, const std::vector<int>& side) const;
+  LinkPhase PhaseFromSides(int backlash, const int* side) const;
 
   Scene scene_;
   Reduction reduction_;

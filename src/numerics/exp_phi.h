@@ -8,12 +8,10 @@
 // Matrices, §10.3 and §10.7.4 for φ-functions).
 #pragma once
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
-
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "numerics/small_matvec.h"
 
@@ -37,7 +35,11 @@ inline void ExpAndPhi1(const Eigen::MatrixXd& a, double tau, Eigen::MatrixXd* s,
     tail *= theta_b / (terms + 1);
   }
   const int degree = terms - 1;
-  std::vector<double> coefficient(degree + 1);
+  // Work space reused across calls (a solver builds a few dozen of these per run).
+  thread_local std::vector<double> coefficient;
+  thread_local std::vector<Eigen::MatrixXd> power;
+  thread_local Eigen::MatrixXd phi1, product;
+  coefficient.resize(degree + 1);
   double factorial = 1.0;  // (k+1)!
   for (int k = 0; k <= degree; ++k) {
     factorial *= (k + 1);
@@ -45,7 +47,7 @@ inline void ExpAndPhi1(const Eigen::MatrixXd& a, double tau, Eigen::MatrixXd* s,
   }
   // Paterson–Stockmeyer: powers B¹ … B^p, then Horner in B^p over blocks of p coefficients.
   const int p = std::max(1, static_cast<int>(std::ceil(std::sqrt(static_cast<double>(terms)))));
-  std::vector<Eigen::MatrixXd> power(p + 1);
+  if (static_cast<int>(power.size()) < p + 1) power.resize(p + 1);
   power[1] = a * tau_b;
   for (int j = 2; j <= p; ++j) Multiply(power[j - 1], power[1], &power[j]);
   // Σ_j c_{ip+j} B^j for block i, added to *sum.
@@ -54,7 +56,7 @@ inline void ExpAndPhi1(const Eigen::MatrixXd& a, double tau, Eigen::MatrixXd* s,
     for (int j = 1; j < p && i * p + j <= degree; ++j) *sum += coefficient[i * p + j] * power[j];
   };
   const int blocks = degree / p;
-  Eigen::MatrixXd phi1 = Eigen::MatrixXd::Zero(n, n), product;
+  phi1.setZero(n, n);
   add_block(blocks, &phi1);
   for (int i = blocks - 1; i >= 0; --i) {
     Multiply(power[p], phi1, &product);

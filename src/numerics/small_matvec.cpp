@@ -20,8 +20,7 @@ inline void Store(double* p, const Lane& lane) { std::memcpy(p, &lane, sizeof(La
 // sets of accumulators: half the dependency chain of one set.
 template <int L>
 __attribute__((always_inline)) inline void Block(const double* __restrict a, int ld, int cols,
-                                                 const double* __restrict x,
-                                                 double* __restrict y) {
+                                                 const double* __restrict x, double* __restrict y) {
   Lane p[L], q[L], t;
   for (int l = 0; l < L; ++l) p[l] = q[l] = Lane{0.0, 0.0, 0.0, 0.0};
   int j = 0;
@@ -76,6 +75,13 @@ void PaddedMatrix::Assign(const Eigen::MatrixXd& a) {
   data_.assign(static_cast<size_t>(ld_) * cols_, 0.0);
   for (int j = 0; j < cols_; ++j) {
     for (int i = 0; i < rows_; ++i) data_[static_cast<size_t>(j) * ld_ + i] = a(i, j);
+  }
+}
+
+void PaddedMatrix::CopyTo(Eigen::MatrixXd* a) const {
+  a->resize(rows_, cols_);
+  for (int j = 0; j < cols_; ++j) {
+    for (int i = 0; i < rows_; ++i) (*a)(i, j) = data_[static_cast<size_t>(j) * ld_ + i];
   }
 }
 

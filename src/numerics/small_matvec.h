@@ -1,14 +1,13 @@
-// y = A x for the small dense matrices on the hot path of the exact drive-line solver (tens of rows,
-// 10–30 columns, one product per output step). At these sizes Eigen's dynamic-size gemv spends
-// most of its time in set-up and remainder loops; this kernel keeps A column-major with the rows
-// padded to a multiple of 4 and accumulates blocks of 16 rows in registers. It is compiled for
+// y = A x for the small dense matrices on the hot path of the exact drive-line solver (tens of
+// rows, 10–30 columns, one product per output step). At these sizes Eigen's dynamic-size gemv
+// spends most of its time in set-up and remainder loops; this kernel keeps A column-major with the
+// rows padded to a multiple of 4 and accumulates blocks of 16 rows in registers. It is compiled for
 // x86-64-v3 (AVX2, FMA) and for the baseline, chosen once at load time (GCC target_clones); the
 // two round differently in the last bit (FMA), so results are reproducible per machine type.
 #pragma once
 
-#include <vector>
-
 #include <Eigen/Dense>
+#include <vector>
 
 namespace millkit::numerics {
 
@@ -27,6 +26,9 @@ class PaddedMatrix {
 
   // y[0, ld) = A x, x with cols() entries. The padding rows of y get 0. x and y must not overlap.
   void Apply(const double* x, double* y) const;
+
+  // The matrix without padding (reuses *a's storage when the size allows).
+  void CopyTo(Eigen::MatrixXd* a) const;
 
   // Number of doubles Apply writes for a matrix of `rows` rows.
   static int Padded(int rows) { return (rows + 3) / 4 * 4; }
