@@ -308,6 +308,7 @@ void Model::BuildSurfaces() {
     default_side_[base + kD0] = -1;
     default_side_[base + kD1] = 1;
   }
+  abs_surfaces_ = surfaces_.cwiseAbs();
 }
 
 void Model::LinearPieces(const Phases& phases, Eigen::MatrixXd* a_out,
@@ -438,8 +439,8 @@ std::vector<Model::WatchedSurface> Model::Watched(const Phases& phases) const {
   return watched;
 }
 
-LinkPhase Model::PhaseFromSides(int k, const std::vector<int>& side) const {
-  const int* s = side.data() + kLinkSurfaces * k;
+LinkPhase Model::PhaseFromSides(int k, const int* side) const {
+  const int* s = side + kLinkSurfaces * k;
   switch (scene_.contact) {
     case ContactLaw::kLinear:
       if (s[kS0] > 0) return LinkPhase::kPosSpringDamper;
@@ -467,10 +468,27 @@ Phases Model::Classify(const Eigen::VectorXd& z, const Eigen::VectorXd& zdot,
                        const Eigen::VectorXd& zddot,
                        const std::vector<KnownSide>& known_sides) const {
   const int count = surface_count();
-  std::vector<int> side(count);
-  const Eigen::VectorXd g = surfaces_ * z;
-  const Eigen::VectorXd g1 = surfaces_ * zdot;
-  const Eigen::VectorXd g2 = surfaces_ * zddot;
+  // Called at every switching event: work space on the stack for the usual sizes.
+  const int n = static_cast<int>(z.size());
+  constexpr int kStack = 128;
+  int stack_side[kStack];
+  double stack_values[3 * kStack];
+  std::vector<int> heap_side;
+  std::vector<double> heap_values;
+  int* side = stack_side;
+  double* values = stack_values;
+  if (count > kStack || n > kStack) {
+    heap_side.resize(count);
+    heap_values.resize(2 * count + n);
+    side = heap_side.data();
+    values = heap_values.data();
+  }
+  Eigen::Map<Eigen::VectorXd> g(values, count), scale(values + count, count);
+  Eigen::Map<Eigen::VectorXd> abs_z(values + 2 * count, n);
+  g.noalias() = surfaces_ * z;
+  // The size of each surface's terms, |G| |z|: what "zero to roundoff" is measured against.
+  abs_z = z.cwiseAbs();
+  scale.noalias() = abs_surfaces_ * abs_z;
   for (int j = 0; j < count; ++j) {
     const auto known = std::find_if(known_sides.begin(), known_sides.end(),
                                     [j](const KnownSide& k) { return k.surface == j; });
@@ -478,17 +496,18 @@ Phases Model::Classify(const Eigen::VectorXd& z, const Eigen::VectorXd& zdot,
       side[j] = known->side;
       continue;
     }
-    const double scale = (surfaces_.row(j).cwiseAbs() * z.cwiseAbs())(0);
-    if (std::abs(g[j]) > kRoundoffZero * scale) {
+    if (std::abs(g[j]) > kRoundoffZero * scale[j]) {
       side[j] = g[j] > 0.0 ? 1 : -1;
       continue;
     }
-    const double scale1 = (surfaces_.row(j).cwiseAbs() * zdot.cwiseAbs())(0);
-    const double scale2 = (surfaces_.row(j).cwiseAbs() * zddot.cwiseAbs())(0);
-    if (std::abs(g1[j]) > kRoundoffZero * scale1 && g1[j] != 0.0) {
-      side[j] = g1[j] > 0.0 ? 1 : -1;
-    } else if (std::abs(g2[j]) > kRoundoffZero * scale2 && g2[j] != 0.0) {
-      side[j] = g2[j] > 0.0 ? 1 : -1;
+    // On the surface to roundoff (rare): the motion decides.
+    const double g1 = surfaces_.row(j).dot(zdot), g2 = surfaces_.row(j).dot(zddot);
+    const double scale1 = abs_surfaces_.row(j).dot(zdot.cwiseAbs());
+    const double scale2 = abs_surfaces_.row(j).dot(zddot.cwiseAbs());
+    if (std::abs(g1) > kRoundoffZero * scale1 && g1 != 0.0) {
+      side[j] = g1 > 0.0 ? 1 : -1;
+    } else if (std::abs(g2) > kRoundoffZero * scale2 && g2 != 0.0) {
+      side[j] = g2 > 0.0 ? 1 : -1;
     } else {
       side[j] = default_side_[j];
     }
@@ -610,6 +629,45 @@ void Model::Outputs(const Phases& phases, const Eigen::VectorXd& z, double* link
     link_torque[l] = m;
     link_twist[l] = m / scene_.links[l].stiffness_Nm_per_rad;
   }
+}
+
+Eigen::MatrixXd Model::LinkTorqueRows(const Phases& phases,
+                                      const Eigen::MatrixXd& system_matrix) const {
+  const int links = static_cast<int>(scene_.links.size());
+  const int n = augmented_size();
+  Eigen::MatrixXd rows = Eigen::MatrixXd::Zero(links, n);
+  if (flexible_link_count() < links) {
+    // Rigid links mix forces and accelerations: read T off Outputs, one unit vector per column.
+    // Outputs adds the constant k0 of each law piece as such (affine in z); it belongs to the
+    // column of the forcing component that is always 1.
+    Eigen::VectorXd unit = Eigen::VectorXd::Zero(n);
+    std::vector<double> offset(links), torque(links), speed(scene_.masses.size()), twist(links);
+    Outputs(phases, unit, offset.data(), speed.data(), twist.data(), &system_matrix);
+    for (int j = 0; j < n; ++j) {
+      unit[j] = 1.0;
+      Outputs(phases, unit, torque.data(), speed.data(), twist.data(), &system_matrix);
+      for (int l = 0; l < links; ++l) rows(l, j) = torque[l] - offset[l];
+      unit[j] = 0.0;
+    }
+    for (int l = 0; l < links; ++l) rows(l, nx_) += offset[l];
+    return rows;
+  }
+  // The flexible links' torques as in Outputs: m = kψ ψ + kv (ω_from − ω_to) + k0 · 1.
+  for (int f = 0; f < flexible_link_count(); ++f) {
+    const int l = flexible_links_[f];
+    const Link& link = scene_.links[l];
+    LinkTorqueCoefficients k{link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, 0.0};
+    const int backlash = backlash_of_flexible_[f];
+    if (backlash >= 0) {
+      k = CoefficientsOf(ModeOf(static_cast<LinkPhase>(phases[backlash])),
+                         link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, link.backlash_rad);
+    }
+    rows(l, f) += k.kpsi;
+    rows(l, SpeedIndex(reduction_.group_of_mass[link.from])) += k.kv;
+    rows(l, SpeedIndex(reduction_.group_of_mass[link.to])) -= k.kv;
+    rows(l, nx_) += k.k0;
+  }
+  return rows;
 }
 
 Eigen::VectorXd Model::StateScale() const {

@@ -136,6 +136,10 @@ class Model {
                double* mass_speed, double* link_twist,
                const Eigen::MatrixXd* system_matrix = nullptr) const;
 
+  // The scene links' torques are linear in z (Outputs): link_torque = T z. Returns T (scene links
+  // × augmented size) for the given phases; `system_matrix` is SystemMatrix(phases).
+  Eigen::MatrixXd LinkTorqueRows(const Phases& phases, const Eigen::MatrixXd& system_matrix) const;
+
   // Typical magnitude of each x component (for absolute tolerances and error norms).
   Eigen::VectorXd StateScale() const;
   // Human-readable name of the phases, e.g. "upper_spindle:+sd lower_spindle:dead drive:lin".
@@ -148,7 +152,7 @@ class Model {
 
  private:
   void BuildSurfaces();
-  LinkPhase PhaseFromSides(int backlash, const std::vector<int>& side) const;
+  LinkPhase PhaseFromSides(int backlash, const int* side) const;
 
   Scene scene_;
   Reduction reduction_;
@@ -160,6 +164,7 @@ class Model {
   std::vector<int> backlash_of_flexible_;  // flexible index → backlash index or −1
   std::vector<double> group_inertia_;
   Eigen::MatrixXd surfaces_;
+  Eigen::MatrixXd abs_surfaces_;      // |surfaces_|, for roundoff scales
   std::vector<int> default_side_;     // side of each surface when it cannot be told
   // For rigid links: the scene masses of the group on the link's `to` side.
   std::vector<std::vector<int>> rigid_to_side_masses_;

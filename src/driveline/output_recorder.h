@@ -35,6 +35,7 @@ class OutputRecorder {
   }
 
   const std::vector<double>& times() const { return times_; }
+  bool keep_samples() const { return keep_; }
   int size() const { return static_cast<int>(times_.size()); }
 
   // Writable rows for sample k (the matrices' rows, or scratch without kept samples). Call

@@ -1,7 +1,10 @@
 // Simulating a drive-line model: one interface, two solvers (SPEC.md §2.7, issue 2).
-//  - kExact: event-exact piecewise-linear solver. Within one set of phases z(t + τ) = exp(M τ) z(t)
-//    exactly; switching events are located on that exact solution (Newton with bisection safeguard
-//    to a few ulps of time). Propagators over one output step are cached per phase set.
+//  - kExact: event-exact piecewise-linear solver. Within one set of phases the solution is exact to
+//    roundoff: z(t + τ) = z + Φ(τ) z', z'(t + τ) = exp(M τ) z', Φ = ∫₀^τ exp(M s) ds, which also
+//    keeps a state at rest exactly at rest. Switching events are found on that exact solution
+//    (bounds first, then its Taylor polynomial; Newton with bisection safeguard to a few ulps of
+//    time). The propagators over one output step are cached per phase set once it has lasted a
+//    few steps (exact_solver.cpp).
 //  - kCvode: SUNDIALS CVODES (BDF, dense Newton, exact Jacobian), root functions on the watched
 //    switching surfaces, stop at each event, flip the phases and reinitialise; input breakpoints
 //    are stop times.

@@ -1,0 +1,77 @@
+// The step matrices of a linear ODE x' = A x in increment form:
+//   S = exp(A τ),   Φ = ∫₀^τ exp(A s) ds = τ φ₁(A τ),   so that   x(t + τ) = x(t) + Φ x'(t),
+//   x'(t + τ) = S x'(t).
+// Stepping the increment keeps an equilibrium (A x = 0 in floating point) exactly where exp(Aτ) x
+// would drift by roundoff, and rounds relative to the change rather than the state.
+// Both come from one Taylor series of φ₁ (Paterson–Stockmeyer evaluation) at τ / 2^q with
+// ‖A τ / 2^q‖₁ <= 1, then q doublings Φ(2τ) = Φ(τ) (I + S(τ)), S(2τ) = S(τ)² (Higham, Functions of
+// Matrices, §10.3 and §10.7.4 for φ-functions).
+#pragma once
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "numerics/small_matvec.h"
+
+namespace millkit::numerics {
+
+// `extra_doublings` > 0 takes that many more halvings and doublings: the same matrices along
+// another rounding path (their difference estimates the roundoff of both).
+inline void ExpAndPhi1(const Eigen::MatrixXd& a, double tau, Eigen::MatrixXd* s,
+                       Eigen::MatrixXd* phi, int extra_doublings = 0) {
+  const int n = static_cast<int>(a.rows());
+  const double theta = a.cwiseAbs().colwise().sum().maxCoeff() * std::abs(tau);
+  int doublings = theta > 1.0 ? static_cast<int>(std::ceil(std::log2(theta))) : 0;
+  doublings += extra_doublings;
+  const double tau_b = std::ldexp(tau, -doublings);
+  const double theta_b = std::ldexp(theta, -doublings);
+  // Terms 0 … K of φ₁(B) = Σ B^k / (k+1)!: the tail after K is below θ^{K+1}/(K+2)! · e^θ.
+  int terms = 1;
+  double tail = theta_b / 2.0;
+  while (terms < 30 && tail * std::exp(theta_b) > 0x1p-54) {
+    ++terms;
+    tail *= theta_b / (terms + 1);
+  }
+  const int degree = terms - 1;
+  // Work space reused across calls (a solver builds a few dozen of these per run).
+  thread_local std::vector<double> coefficient;
+  thread_local std::vector<Eigen::MatrixXd> power;
+  thread_local Eigen::MatrixXd phi1, product;
+  coefficient.resize(degree + 1);
+  double factorial = 1.0;  // (k+1)!
+  for (int k = 0; k <= degree; ++k) {
+    factorial *= (k + 1);
+    coefficient[k] = 1.0 / factorial;
+  }
+  // Paterson–Stockmeyer: powers B¹ … B^p, then Horner in B^p over blocks of p coefficients.
+  const int p = std::max(1, static_cast<int>(std::ceil(std::sqrt(static_cast<double>(terms)))));
+  if (static_cast<int>(power.size()) < p + 1) power.resize(p + 1);
+  power[1] = a * tau_b;
+  for (int j = 2; j <= p; ++j) Multiply(power[j - 1], power[1], &power[j]);
+  // Σ_j c_{ip+j} B^j for block i, added to *sum.
+  auto add_block = [&](int i, Eigen::MatrixXd* sum) {
+    sum->diagonal().array() += coefficient[i * p];
+    for (int j = 1; j < p && i * p + j <= degree; ++j) *sum += coefficient[i * p + j] * power[j];
+  };
+  const int blocks = degree / p;
+  phi1.setZero(n, n);
+  add_block(blocks, &phi1);
+  for (int i = blocks - 1; i >= 0; --i) {
+    Multiply(power[p], phi1, &product);
+    phi1 = product;
+    add_block(i, &phi1);
+  }
+  Multiply(power[1], phi1, s);
+  s->diagonal().array() += 1.0;
+  *phi = tau_b * phi1;
+  for (int i = 0; i < doublings; ++i) {
+    Multiply(*phi, *s, &product);
+    *phi += product;
+    Multiply(*s, *s, &product);
+    *s = product;
+  }
+}
+
+}  // namespace millkit::numerics
