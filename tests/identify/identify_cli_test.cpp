@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include "identify/oscillogram.h"
 #include "support/run_cli.h"
 
 using millkit::testing::ReadText;
@@ -88,12 +89,31 @@ TEST_CASE("identify rejects bad input with exit 2 and leaves no output behind") 
   CHECK(dir.EntryCount() == 2);  // only the two inputs written above
 }
 
-TEST_CASE("synthesize writes the bundled record again, bit for bit") {
+TEST_CASE("synthesize writes the bundled record again, to within one ADC step") {
+  // Not bit for bit: a solver change moves the exact solution by roundoff (~1e-12 of peak), which
+  // moves the quantiser's step (it follows the measured peak) by roundoff and can flip the level
+  // of a sample that sits on a step boundary.
   ScratchDir dir;
   const auto result = RunMillkit("synthesize " + Scene() + " --spec " +
                                  Bundled("mill5_two_spindles.spec.toml") + " --out '" +
                                  (dir / "rec.csv").string() + "'");
   INFO(result.stderr_text);
   REQUIRE(result.exit_code == 0);
-  CHECK(ReadText(dir / "rec.csv") == ReadText(SourcePath("datasets/records/mill5_two_spindles.csv")));
+  const auto made = millkit::identify::LoadOscillogram(dir / "rec.csv");
+  const auto bundled =
+      millkit::identify::LoadOscillogram(SourcePath("datasets/records/mill5_two_spindles.csv"));
+  REQUIRE(made.time_s == bundled.time_s);
+  REQUIRE(made.channels == bundled.channels);
+  for (size_t c = 0; c < made.channels.size(); ++c) {
+    double peak = 0.0;
+    for (double v : bundled.values[c]) peak = std::max(peak, std::abs(v));
+    const double adc_step = 2.0 * 1.5 * peak / 4096.0;  // the spec's 12 bits over ±1.5 × peak
+    int differing = 0;
+    for (size_t k = 0; k < made.time_s.size(); ++k) {
+      const double difference = std::abs(made.values[c][k] - bundled.values[c][k]);
+      CHECK(difference <= 1.01 * adc_step);
+      differing += difference > 0.5 * adc_step ? 1 : 0;  // a flipped quantiser level
+    }
+    CHECK(differing <= 2);
+  }
 }
