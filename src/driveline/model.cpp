@@ -262,6 +262,10 @@ Model::Model(Scene scene) : scene_(std::move(scene)) {
   nx_ = flexible_link_count() + groups + (has_drive() ? 2 : 0);
   nw_ = 1 + static_cast<int>(scene_.torques.size());
   BuildSurfaces();
+  // Both depend on the scene only; every run needs them.
+  initial_state_ = ComputeInitialState();
+  state_scale_ = ComputeStateScale();
+  initial_phases_ = InitialPhases(initial_state_);
 }
 
 void Model::BuildSurfaces() {
@@ -540,7 +544,7 @@ Phases Model::InitialPhases(const Eigen::VectorXd& z0) const {
   return phases;
 }
 
-Eigen::VectorXd Model::InitialState() const {
+Eigen::VectorXd Model::ComputeInitialState() const {
   Eigen::VectorXd z = Eigen::VectorXd::Zero(augmented_size());
   auto torques = SourceTorquesAt(scene_, 0.0);
   double load_scale = 0.0;
@@ -670,7 +674,7 @@ Eigen::MatrixXd Model::LinkTorqueRows(const Phases& phases,
   return rows;
 }
 
-Eigen::VectorXd Model::StateScale() const {
+Eigen::VectorXd Model::ComputeStateScale() const {
   Eigen::VectorXd scale(nx_);
   const auto final_torque = StaticLinkTorques(scene_);
   const Eigen::VectorXd z0 = InitialState();

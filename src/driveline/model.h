@@ -122,10 +122,12 @@ class Model {
                   const Eigen::VectorXd& zddot, const std::vector<KnownSide>& known_sides) const;
   // Phases of the initial state (iterates Classify to a fixed point).
   Phases InitialPhases(const Eigen::VectorXd& z0) const;
+  // InitialPhases(InitialState()), computed once.
+  const Phases& InitialPhases() const { return initial_phases_; }
 
   // Initial augmented state (SPEC §2.4): speeds initial.speed, quasi-static twists under the
   // loads at t = 0, gap_position·b/2 on links carrying no static torque, drive in steady state.
-  Eigen::VectorXd InitialState() const;
+  Eigen::VectorXd InitialState() const { return initial_state_; }
   // Sets the forcing part of z (w and w') to the inputs at time t (right limit).
   void SetForcing(double t, Eigen::VectorXd* z) const;
 
@@ -141,7 +143,7 @@ class Model {
   Eigen::MatrixXd LinkTorqueRows(const Phases& phases, const Eigen::MatrixXd& system_matrix) const;
 
   // Typical magnitude of each x component (for absolute tolerances and error norms).
-  Eigen::VectorXd StateScale() const;
+  Eigen::VectorXd StateScale() const { return state_scale_; }
   // Human-readable name of the phases, e.g. "upper_spindle:+sd lower_spindle:dead drive:lin".
   std::string DescribePhases(const Phases& phases) const;
 
@@ -152,6 +154,8 @@ class Model {
 
  private:
   void BuildSurfaces();
+  Eigen::VectorXd ComputeInitialState() const;
+  Eigen::VectorXd ComputeStateScale() const;
   LinkPhase PhaseFromSides(int backlash, const int* side) const;
 
   Scene scene_;
@@ -168,6 +172,9 @@ class Model {
   std::vector<int> default_side_;     // side of each surface when it cannot be told
   // For rigid links: the scene masses of the group on the link's `to` side.
   std::vector<std::vector<int>> rigid_to_side_masses_;
+  Eigen::VectorXd initial_state_;  // InitialState(), computed once
+  Eigen::VectorXd state_scale_;    // StateScale(), computed once
+  Phases initial_phases_;          // InitialPhases(), computed once
 };
 
 }  // namespace millkit::driveline

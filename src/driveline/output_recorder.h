@@ -4,6 +4,7 @@
 // bit-identical with and without kept samples.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -47,9 +48,11 @@ class OutputRecorder {
   double* twist(int k) { return keep_ ? result_.link_twist_rad.row(k).data() : twist_.data(); }
 
   // Folds sample k's link torques into the peaks (first time of the max wins, as maxCoeff does).
-  void Commit(int k) {
-    const double* m = torque(k);
+  void Commit(int k) { Commit(k, torque(k)); }
+  // The same for torques held elsewhere: copies them into the samples when they are kept.
+  void Commit(int k, const double* m) {
     const size_t links = result_.peak_abs_torque_Nm.size();
+    if (keep_) std::copy(m, m + links, result_.link_torque_Nm.row(k).data());
     for (size_t l = 0; l < links; ++l) {
       const double a = std::abs(m[l]);
       if (a > result_.peak_abs_torque_Nm[l]) {
