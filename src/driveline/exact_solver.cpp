@@ -7,15 +7,17 @@
 // torque stays on the switching surface, where a stepped exp(M h) z drifts across it by roundoff
 // and counts events that CVODE does not see.
 //  - A full output step of a phase set already stepped kStepsBeforeCaching times uses the cached
-//    [Φ; S; R S] for the sample interval h: one small product per step (numerics/small_matvec.h).
+//    [Φ; S] for the sample interval h: one small product per step (numerics/small_matvec.h), and
+//    one more for the surfaces and link torques, [R; T] z.
 //  - Every other step (to an event, a breakpoint, an irregular output time, or in a phase set seen
 //    only briefly) sums the Taylor series of v, v(t + s dt) = Σ u_k s^k, u_k = (M dt)^k v / k!,
 //    over pieces dt with ‖M dt‖∞ <= 1; z follows by integrating it term by term.
 // Events: a watched surface g = r·z changes side within a step. Each step first bounds every
-// watched surface from its values and slopes at the two ends: with u = s/τ, the cubic Hermite
-// interpolant H differs from g by at most max|g⁗| τ⁴ u²(1 − u)²/4!, and
-// |g⁗| = |r M³ v| <= |r| |M|³ 1 · e^{‖M‖∞ τ} ‖v(t)‖∞. A surface that the motion cannot reach within
-// the step (no path in M's graph from a moving component to the surface's) stays where it is.
+// watched surface from its values at the two ends: the chord is off g by at most max|g''| τ²/8,
+// |g''| = |r M v| <= |r| |M| 1 · e^{‖M‖∞ τ} ‖v(t)‖∞. Those it does not clear are bounded from
+// their values and slopes: with u = s/τ, the cubic Hermite interpolant differs from g by at most
+// max|g⁗| τ⁴ u²(1 − u)²/4!, |g⁗| <= |r| |M|³ 1 · e^{‖M‖∞ τ} ‖v(t)‖∞. A surface that the motion
+// cannot reach (no path in M's graph from a moving component to the surface's) stays put.
 // Only a surface whose bound reaches below zero is looked at exactly: on the step's Taylor series
 // it is a polynomial in s, searched left to right with the same bound on halved intervals, and its
 // first root is located by safeguarded Newton to a few ulps of time.
@@ -58,8 +60,8 @@ constexpr double kStallUlps = 64.0;
 constexpr int kMaxStalledEvents = 64;
 constexpr int kMaxRootIterations = 100;
 constexpr int kMaxTaylorTerms = 60;
-// Building [Φ; S; R S] costs about as much as 10–20 Taylor steps; phase sets that last a few
-// samples (contact transients, brief separations) never pay it.
+// Building [Φ; S] costs about as much as 10 Taylor steps; phase sets that last a few samples
+// (contact transients, brief separations) never pay it.
 constexpr long kStepsBeforeCaching = 8;
 // Halvings of one polynomial before a surface that keeps within its bound is called a graze.
 constexpr int kMaxSearchDepth = 60;
@@ -156,12 +158,12 @@ struct PhaseData {
                          // phases describe), for the surfaces' slopes R v
   PaddedMatrix observe;  // [R; T D]: watched surfaces, then scene link torques
   // Per watched surface: kCrossingTolerance ‖R_w‖₁ (a crossing's least depth at typical state
-  // magnitudes, times the state's size in the step), and ‖R_w m³‖₁ (|g⁗| <= bound3 · ‖v‖∞).
+  // magnitudes, times the state's size in the step), and bounds of its derivatives.
   std::vector<double> tolerance;
-  std::vector<double> bound2;  // |R_w| |m| 1: |g''| <= bound2 · ‖v‖∞
-  std::vector<double> bound3;
+  std::vector<double> bound2;        // |R_w| |m| 1: |g''| <= bound2 · ‖v‖∞
+  std::vector<double> bound3;        // |R_w| |m|³ 1: |g⁗| <= bound3 · ‖v‖∞
   std::vector<std::uint64_t> reach;  // per surface, `words` words: the components whose motion
-                                     // can reach it (built on first need: EnsureReach)
+                                     // can reach it (built on first need)
   // The full step over h in increment form, built after kStepsBeforeCaching full steps.
   long full_steps = 0;
   bool has_step = false;
