@@ -71,7 +71,7 @@ Eigen::VectorXd AugmentedScale(const Model& model) {
   const int nx = model.state_size(), nw = model.forcing_size();
   Eigen::VectorXd scale = Eigen::VectorXd::Ones(model.augmented_size());
   scale.head(nx) = model.StateScale();
-  const auto& torques = model.scene().torques;
+  const auto& torques = model.reduced_scene().torques;
   for (int s = 0; s < nw - 1; ++s) {
     double value = 0.0, slope = 0.0;
     const auto& source = torques[s];
@@ -612,7 +612,8 @@ MILLKIT_HOT void ExactIntegrator::Record(OutputRecorder* recorder, int k, const 
     double* twist = recorder->twist(k);
     for (int l = 0; l < links; ++l) {
       twist[l] = twist_index_[l] >= 0 ? scale_[twist_index_[l]] * y[twist_index_[l]]
-                                      : torque[l] / model_.scene().links[l].stiffness_Nm_per_rad;
+                                      : torque[l] /
+                                            model_.reduced_scene().links[l].stiffness_Nm_per_rad;
     }
   }
   recorder->Commit(k, torque);
@@ -620,7 +621,7 @@ MILLKIT_HOT void ExactIntegrator::Record(OutputRecorder* recorder, int k, const 
 
 MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
   const auto started = std::chrono::steady_clock::now();
-  const Scene& scene = model_.scene();
+  const Scene& scene = model_.reduced_scene();  // outputs convert back in the recorder
   SimulationSummary& summary = result_.summary;
   summary.solver = "exact";
   summary.reduction = model_.reduction().report;
