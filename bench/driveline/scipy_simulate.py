@@ -4,7 +4,8 @@ way an engineer would in SciPy -- solve_ivp over the non-smooth right-hand side,
 handling -- timed at several rtol and compared with MillKit's reference torques.
 
 usage: scipy_simulate.py SCENE.toml REFERENCE.csv
-Supports masses, links (limited / no_pull / linear), ramp torque sources; no drive, no band.
+Supports masses, links (limited / no_pull / linear), ramp torque sources; no drive, no band,
+no gear ratio.
 Prints markdown table rows: | SciPy METHOD | rtol | - | rhs calls | wall ms | max error / peak |
 """
 import sys
@@ -24,6 +25,8 @@ def load(path):
     J = np.array([m["inertia"] for m in doc["mass"]], float)
     links = []
     for l in doc["link"]:
+        if float(l.get("ratio", 1.0)) != 1.0:
+            raise SystemExit("scipy_simulate.py: links with a gear ratio are not supported")
         links.append(dict(name=l["name"], a=masses.index(l["between"][0]),
                           b=masses.index(l["between"][1]), c=float(l["stiffness"]),
                           d=float(l.get("damping", 0.0)), bl=float(l.get("backlash", 0.0)),

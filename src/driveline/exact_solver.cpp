@@ -7,15 +7,17 @@
 // torque stays on the switching surface, where a stepped exp(M h) z drifts across it by roundoff
 // and counts events that CVODE does not see.
 //  - A full output step of a phase set already stepped kStepsBeforeCaching times uses the cached
-//    [Φ; S; R S] for the sample interval h: one small product per step (numerics/small_matvec.h).
+//    [Φ; S] for the sample interval h: one small product per step (numerics/small_matvec.h), and
+//    one more for the surfaces and link torques, [R; T] z.
 //  - Every other step (to an event, a breakpoint, an irregular output time, or in a phase set seen
 //    only briefly) sums the Taylor series of v, v(t + s dt) = Σ u_k s^k, u_k = (M dt)^k v / k!,
 //    over pieces dt with ‖M dt‖∞ <= 1; z follows by integrating it term by term.
 // Events: a watched surface g = r·z changes side within a step. Each step first bounds every
-// watched surface from its values and slopes at the two ends: with u = s/τ, the cubic Hermite
-// interpolant H differs from g by at most max|g⁗| τ⁴ u²(1 − u)²/4!, and
-// |g⁗| = |r M³ v| <= |r| |M|³ 1 · e^{‖M‖∞ τ} ‖v(t)‖∞. A surface that the motion cannot reach within
-// the step (no path in M's graph from a moving component to the surface's) stays where it is.
+// watched surface from its values at the two ends: the chord is off g by at most max|g''| τ²/8,
+// |g''| = |r M v| <= |r| |M| 1 · e^{‖M‖∞ τ} ‖v(t)‖∞. Those it does not clear are bounded from
+// their values and slopes: with u = s/τ, the cubic Hermite interpolant differs from g by at most
+// max|g⁗| τ⁴ u²(1 − u)²/4!, |g⁗| <= |r| |M|³ 1 · e^{‖M‖∞ τ} ‖v(t)‖∞. A surface that the motion
+// cannot reach (no path in M's graph from a moving component to the surface's) stays put.
 // Only a surface whose bound reaches below zero is looked at exactly: on the step's Taylor series
 // it is a polynomial in s, searched left to right with the same bound on halved intervals, and its
 // first root is located by safeguarded Newton to a few ulps of time.
@@ -58,8 +60,8 @@ constexpr double kStallUlps = 64.0;
 constexpr int kMaxStalledEvents = 64;
 constexpr int kMaxRootIterations = 100;
 constexpr int kMaxTaylorTerms = 60;
-// Building [Φ; S; R S] costs about as much as 10–20 Taylor steps; phase sets that last a few
-// samples (contact transients, brief separations) never pay it.
+// Building [Φ; S] costs about as much as 10 Taylor steps; phase sets that last a few samples
+// (contact transients, brief separations) never pay it.
 constexpr long kStepsBeforeCaching = 8;
 // Halvings of one polynomial before a surface that keeps within its bound is called a graze.
 constexpr int kMaxSearchDepth = 60;
@@ -69,7 +71,7 @@ Eigen::VectorXd AugmentedScale(const Model& model) {
   const int nx = model.state_size(), nw = model.forcing_size();
   Eigen::VectorXd scale = Eigen::VectorXd::Ones(model.augmented_size());
   scale.head(nx) = model.StateScale();
-  const auto& torques = model.scene().torques;
+  const auto& torques = model.reduced_scene().torques;
   for (int s = 0; s < nw - 1; ++s) {
     double value = 0.0, slope = 0.0;
     const auto& source = torques[s];
@@ -156,15 +158,16 @@ struct PhaseData {
                          // phases describe), for the surfaces' slopes R v
   PaddedMatrix observe;  // [R; T D]: watched surfaces, then scene link torques
   // Per watched surface: kCrossingTolerance ‖R_w‖₁ (a crossing's least depth at typical state
-  // magnitudes, times the state's size in the step), and ‖R_w m³‖₁ (|g⁗| <= bound3 · ‖v‖∞).
+  // magnitudes, times the state's size in the step), and bounds of its derivatives.
   std::vector<double> tolerance;
-  std::vector<double> bound3;
+  std::vector<double> bound2;        // |R_w| |m| 1: |g''| <= bound2 · ‖v‖∞
+  std::vector<double> bound3;        // |R_w| |m|³ 1: |g⁗| <= bound3 · ‖v‖∞
   std::vector<std::uint64_t> reach;  // per surface, `words` words: the components whose motion
-                                     // can reach it (built on first need: EnsureReach)
+                                     // can reach it (built on first need)
   // The full step over h in increment form, built after kStepsBeforeCaching full steps.
   long full_steps = 0;
   bool has_step = false;
-  PaddedMatrix step;    // [Φ; 0; S; 0; R S] over the active part of v (zero rows pad to 4)
+  PaddedMatrix step;    // [Φ; 0; S; 0] over the active part of v (zero rows pad to 4)
   double growth = 1.0;  // e^{‖m‖∞ h}: bounds ‖v‖ over a step by growth · ‖v(t)‖
   double defect = 0.0;  // roundoff of one cached step, relative to the state scale
 };
@@ -390,7 +393,7 @@ class ExactIntegrator {
   std::vector<std::uint64_t> inputs_scratch_;
   std::vector<int> stack_scratch_;
   // Work space of BuildStep().
-  Eigen::MatrixXd build_m_, build_rows_, build_s_, build_phi_, build_step_, build_product_;
+  Eigen::MatrixXd build_m_, build_s_, build_phi_, build_step_, build_product_;
   // Output map of kept samples: speed of each scene mass, twist of each flexible scene link.
   std::vector<int> speed_index_;
   std::vector<int> twist_index_;  // −1 for rigid links
@@ -431,29 +434,33 @@ MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
   }
   data.rows.Assign(observe.topRows(count));
   data.observe.Assign(observe);
-  // |g⁗| = |R_w m³ v| with v zero in the slopes, whose rows of m are zero: only the active block
-  // counts. ‖R_w m_aa³‖₁ <= |R_w| (|m_aa|³ 1), one vector for all surfaces.
+  // |g''| = |R_w m v| and |g⁗| = |R_w m³ v| with v zero in the slopes, whose rows of m are zero:
+  // only the active block counts. ‖R_w m_aaᵏ‖₁ <= |R_w| (|m_aa|ᵏ 1), one vector for all surfaces.
   data.tolerance.resize(count);
+  data.bound2.resize(count);
   data.bound3.resize(count);
   {
     Eigen::MatrixXd& abs_m = build_product_;
     abs_m = m.topLeftCorner(active_, active_).cwiseAbs();
     transposed_scratch_.Assign(abs_m);
-    std::vector<double>& a = vector_scratch_;
-    a.assign(2 * active_stride_, 0.0);
-    double* b = a.data() + active_stride_;
-    for (int i = 0; i < active_; ++i) a[i] = 1.0;
-    transposed_scratch_.Apply(a.data(), b);
-    transposed_scratch_.Apply(b, a.data());
-    transposed_scratch_.Apply(a.data(), b);
+    std::vector<double>& work = vector_scratch_;
+    work.assign(3 * active_stride_, 0.0);
+    double *ones = work.data(), *r1 = ones + active_stride_, *r2 = r1 + active_stride_;
+    for (int i = 0; i < active_; ++i) ones[i] = 1.0;
+    transposed_scratch_.Apply(ones, r1);  // |m| 1
+    transposed_scratch_.Apply(r1, r2);    // |m|² 1
+    transposed_scratch_.Apply(r2, ones);  // |m|³ 1, into the first vector
     for (int w = 0; w < count; ++w) {
-      double size = 0.0, bound = 0.0;
+      double size = 0.0, bound2 = 0.0, bound3 = 0.0;
       for (int i = 0; i < active_; ++i) {
-        size += std::abs(observe(w, i));
-        bound += std::abs(observe(w, i)) * b[i];
+        const double r = std::abs(observe(w, i));
+        size += r;
+        bound2 += r * r1[i];
+        bound3 += r * ones[i];
       }
       data.tolerance[w] = kCrossingTolerance * size;
-      data.bound3[w] = bound;
+      data.bound2[w] = bound2;
+      data.bound3[w] = bound3;
     }
   }
   return &cache_.emplace(phases, std::move(data)).first->second;
@@ -463,17 +470,13 @@ void ExactIntegrator::BuildStep(PhaseData* data) {
   // m is block upper triangular over [active; slopes] with zero slope rows, so the active blocks
   // of S and Φ are those of the active block of m.
   const int a = active_, as = active_stride_;
-  Eigen::MatrixXd &m = build_m_, &rows = build_rows_, &s = build_s_, &phi = build_phi_;
+  Eigen::MatrixXd &m = build_m_, &s = build_s_, &phi = build_phi_;
   data->m_active.CopyTo(&m);
-  data->rows.CopyTo(&rows);
-  const int count = static_cast<int>(rows.rows());
   numerics::ExpAndPhi1(m, h_, &s, &phi);
   Eigen::MatrixXd& step = build_step_;
-  step.setZero(2 * as + count, a);
+  step.setZero(2 * as, a);
   step.topRows(a) = phi;
   step.middleRows(as, a) = s;
-  numerics::Multiply(rows, s, &build_product_);
-  step.bottomRows(count) = build_product_;
   data->step.Assign(step);
   data->has_step = true;
   ++result_.summary.phase_sets;
@@ -601,7 +604,6 @@ MILLKIT_HOT bool ExactIntegrator::FindEvent(const PhaseData& data,
 MILLKIT_HOT void ExactIntegrator::Record(OutputRecorder* recorder, int k, const double* y,
                                          const double* torque) {
   const int links = static_cast<int>(twist_index_.size());
-  Copy(torque, links, recorder->torque(k));
   if (recorder->keep_samples()) {
     double* speed = recorder->speed(k);
     for (size_t i = 0; i < speed_index_.size(); ++i) {
@@ -610,15 +612,16 @@ MILLKIT_HOT void ExactIntegrator::Record(OutputRecorder* recorder, int k, const 
     double* twist = recorder->twist(k);
     for (int l = 0; l < links; ++l) {
       twist[l] = twist_index_[l] >= 0 ? scale_[twist_index_[l]] * y[twist_index_[l]]
-                                      : torque[l] / model_.scene().links[l].stiffness_Nm_per_rad;
+                                      : torque[l] /
+                                            model_.reduced_scene().links[l].stiffness_Nm_per_rad;
     }
   }
-  recorder->Commit(k);
+  recorder->Commit(k, torque);
 }
 
 MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
   const auto started = std::chrono::steady_clock::now();
-  const Scene& scene = model_.scene();
+  const Scene& scene = model_.reduced_scene();  // outputs convert back in the recorder
   SimulationSummary& summary = result_.summary;
   summary.solver = "exact";
   summary.reduction = model_.reduction().report;
@@ -641,14 +644,14 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
   if (options_.initial_state) {
     z0.head(model_.state_size()) = options_.initial_state->head(model_.state_size());
   }
-  Phases phases = model_.InitialPhases(z0);
+  Phases phases = options_.initial_state ? model_.InitialPhases(z0) : model_.InitialPhases();
   PhaseData* data = Data(phases);
   const std::vector<double> breakpoints = scene.InputBreakpoints();
   size_t next_breakpoint = 0;
 
   // Scaled state y and its derivative v (padded with zeros), the same at the end of a step, and
-  // the watched surfaces' values and slopes at the step's start (g0, dg0) and end (`end` holds
-  // [g; link torques], dg1).
+  // the watched surfaces' values at the step's start (g0) and end (`end` holds [g; link
+  // torques]); their slopes (dg0, dg1) only when a step needs them.
   const int surfaces = model_.surface_count();
   const int max_ld = PaddedMatrix::Padded(2 * stride_ + surfaces + links);
   std::vector<double> y(stride_, 0.0), v(stride_, 0.0), y1(stride_, 0.0), v1(stride_, 0.0);
@@ -657,10 +660,9 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
   Eigen::VectorXd unscaled(n_), unscaled_v(n_), unscaled_a(n_);
   std::vector<std::uint64_t> moving(words_);
   double v_norm = 0.0;
-  auto refresh = [&] {  // v, g0, dg0 and ‖v‖ from y in the current phases
+  auto refresh = [&] {  // v, g0 and ‖v‖ from y in the current phases
     data->m_padded.Apply(y.data(), v.data());
     data->rows.Apply(y.data(), g0.data());
-    data->rows.Apply(v.data(), dg0.data());
     v_norm = numerics::MaxAbsPadded(v.data(), stride_);
   };
   refresh();
@@ -708,17 +710,15 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
         v1[i] = out[active_stride_ + i];
       }
       for (int i = active_stride_; i < stride_; ++i) y1[i] = y[i];  // (v1 stays zero there)
-      Copy(out.data() + 2 * active_stride_, count, dg1.data());
       summary.error_estimate += data->defect;
     } else {
       ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
-      data->rows.Apply(v1.data(), dg1.data());
       expanded = true;
       growth = std::exp(std::min(data->norm_inf * tau, 700.0));
     }
     ++summary.steps;
     // Non-finite states show in v first (y1 = y + Φ v).
-    const double v1_norm = numerics::MaxAbsPadded(v1.data(), stride_);
+    const double v1_norm = numerics::MaxAbsPadded(v1.data(), active_stride_);  // zero beyond
     if (!std::isfinite(v1_norm)) {
       summary.message = "state became non-finite at t = " + std::to_string(t);
       break;
@@ -726,27 +726,29 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
     data->observe.Apply(y1.data(), end.data());
 
     // Which watched surfaces can cross within the step: the bounds first, exact work after. The
-    // surfaces are signed (>= 0 on the watched side); the first pass is branch-free over all of
-    // them with the smallest tolerance (state size 1), the rest only for those it does not clear.
+    // surfaces are signed (>= 0 on the watched side). The first pass is branch-free over all of
+    // them with the smallest tolerance (state size 1): the chord between the ends is off g by at
+    // most max|g''| τ²/8. The surfaces it does not clear get their slopes and the tighter tiers.
+    const double l_factor = growth * v_norm * tau * tau * 0.125;
     const double c_factor = growth * v_norm * tau * tau * tau * tau * (1.0 / 24.0);
     double least = 0.0;
     {
       const double* __restrict a0 = g0.data();
       const double* __restrict a1 = end.data();
-      const double* __restrict d0 = dg0.data();
-      const double* __restrict d1 = dg1.data();
-      const double* __restrict bound3 = data->bound3.data();
+      const double* __restrict bound2 = data->bound2.data();
       const double* __restrict tol = data->tolerance.data();
       double* __restrict out_slack = slack.data();
       for (int w = 0; w < count; ++w) {
-        out_slack[w] =
-            QuickMinimum(a0[w], d0[w] * tau, a1[w], d1[w] * tau, bound3[w] * c_factor) + tol[w];
+        const double lower = a0[w] < a1[w] ? a0[w] : a1[w];
+        out_slack[w] = lower - bound2[w] * l_factor + tol[w];
         least = out_slack[w] < least ? out_slack[w] : least;
       }
     }
     const bool any = least < 0.0;
     candidates.clear();
     if (any) {
+      data->rows.Apply(v.data(), dg0.data());
+      data->rows.Apply(v1.data(), dg1.data());
       const double size = std::max({1.0, numerics::MaxAbsPadded(y.data(), stride_),
                                     numerics::MaxAbsPadded(y1.data(), stride_)});
       bool moving_known = false;
@@ -827,14 +829,12 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
       }
       if (!expanded) {  // the series' end replaced the cached step's: observe that one
         data->observe.Apply(y1.data(), end.data());
-        data->rows.Apply(v1.data(), dg1.data());
       }
     }
 
     y.swap(y1);
     v.swap(v1);
     Copy(end.data(), count, g0.data());
-    Copy(dg1.data(), count, dg0.data());
     v_norm = v1_norm;
     t = target;
     if (at_breakpoint) {

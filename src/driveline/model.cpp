@@ -178,7 +178,8 @@ double HighestModeHz(const Scene& scene, const Reduction& reduction) {
   return std::sqrt(std::max(0.0, eigen.eigenvalues().maxCoeff())) / (2.0 * kPi);
 }
 
-void CheckSampleRate(const Scene& scene) {
+void CheckSampleRate(const Scene& user_scene) {
+  const Scene scene = ReducedScene(user_scene);
   const Reduction reduction = ReduceToBand(scene);
   const double f_max = HighestModeHz(scene, reduction);
   const double needed = kSamplesPerFastestPeriod * f_max;
@@ -226,14 +227,21 @@ std::vector<double> QuasiStaticLinkTorques(const Scene& scene,
   return torque;
 }
 
-std::vector<double> StaticLinkTorques(const Scene& scene) {
+std::vector<double> StaticLinkTorques(const Scene& user_scene) {
+  const Scene scene = ReducedScene(user_scene);
   auto torques = SourceTorquesAt(scene, scene.duration_s);
   if (scene.drive) torques[scene.drive->mass] += SteadyDriveTorque(scene, scene.duration_s);
-  return QuasiStaticLinkTorques(scene, torques);
+  std::vector<double> link_torque = QuasiStaticLinkTorques(scene, torques);
+  const ShaftFactors k = ComputeShaftFactors(user_scene);
+  for (size_t l = 0; l < link_torque.size(); ++l) link_torque[l] /= k.link[l];
+  return link_torque;
 }
 
-Model::Model(Scene scene) : scene_(std::move(scene)) {
-  ValidateScene(scene_);
+Model::Model(Scene scene) : user_scene_(std::move(scene)) {
+  ValidateScene(user_scene_);
+  // Everything below works on the reference shaft; outputs go back through the factors.
+  scene_ = ReducedScene(user_scene_);
+  shaft_factors_ = ComputeShaftFactors(user_scene_);
   reduction_ = ReduceToBand(scene_);
   const int groups = 1 + *std::max_element(reduction_.group_of_mass.begin(),
                                            reduction_.group_of_mass.end());
@@ -262,6 +270,10 @@ Model::Model(Scene scene) : scene_(std::move(scene)) {
   nx_ = flexible_link_count() + groups + (has_drive() ? 2 : 0);
   nw_ = 1 + static_cast<int>(scene_.torques.size());
   BuildSurfaces();
+  // Both depend on the scene only; every run needs them.
+  initial_state_ = ComputeInitialState();
+  state_scale_ = ComputeStateScale();
+  initial_phases_ = InitialPhases(initial_state_);
 }
 
 void Model::BuildSurfaces() {
@@ -540,7 +552,7 @@ Phases Model::InitialPhases(const Eigen::VectorXd& z0) const {
   return phases;
 }
 
-Eigen::VectorXd Model::InitialState() const {
+Eigen::VectorXd Model::ComputeInitialState() const {
   Eigen::VectorXd z = Eigen::VectorXd::Zero(augmented_size());
   auto torques = SourceTorquesAt(scene_, 0.0);
   double load_scale = 0.0;
@@ -670,7 +682,7 @@ Eigen::MatrixXd Model::LinkTorqueRows(const Phases& phases,
   return rows;
 }
 
-Eigen::VectorXd Model::StateScale() const {
+Eigen::VectorXd Model::ComputeStateScale() const {
   Eigen::VectorXd scale(nx_);
   const auto final_torque = StaticLinkTorques(scene_);
   const Eigen::VectorXd z0 = InitialState();

@@ -51,22 +51,24 @@ struct Reduction {
 // Makes rigid every link with b = 0 whose two-mass frequency sqrt(c (1/J_a + 1/J_b))/2π is at
 // least kBandFactor × max(band, fastest mode of the model without it), highest first, merging
 // masses as it goes. The second term keeps links whose mode an impact of a kept gap would excite.
-// Identity without a band.
+// Identity without a band. `scene` has no gear ratios (ReducedScene; Model passes its own).
 inline constexpr double kBandFactor = 10.0;
 Reduction ReduceToBand(const Scene& scene);
 
 // Highest natural frequency (Hz) of the reduced model with every backlash link in contact
 // (stiffness 2c for `limited` links with b > 0, the stiffest piece of that law), undamped.
+// `scene` has no gear ratios (ReducedScene).
 double HighestModeHz(const Scene& scene, const Reduction& reduction);
 
 // Throws InputError ([scene] sample_rate) when sample_rate < kSamplesPerFastestPeriod × the
-// highest mode (after band reduction).
+// highest mode (after band reduction), found on ReducedScene(scene).
 inline constexpr double kSamplesPerFastestPeriod = 4.0;
 void CheckSampleRate(const Scene& scene);
 
 // Quasi-static link torques (SPEC §2.5): the torque each link carries in the rigid-body motion
 // under the given mass torques, m_s = J_B ε − Σ_B M with ε = ΣM / ΣJ and B the subtree on the
-// link's `to` side. `mass_torques` includes any drive torque.
+// link's `to` side. `mass_torques` includes any drive torque. `scene` has no gear ratios
+// (ReducedScene), the torques are on the reference shaft.
 std::vector<double> QuasiStaticLinkTorques(const Scene& scene,
                                            const std::vector<double>& mass_torques);
 
@@ -76,7 +78,8 @@ std::vector<double> SourceTorquesAt(const Scene& scene, double t);
 // The torque a speed drive holds at steady state: the net load, clipped to its limit (SPEC §2.5).
 double SteadyDriveTorque(const Scene& scene, double t);
 
-// Static torque of each scene link under the final loads (t = duration), used for Kd.
+// Static torque of each scene link under the final loads (t = duration), used for Kd, in the
+// link's own units (gear ratios allowed).
 std::vector<double> StaticLinkTorques(const Scene& scene);
 
 class Model {
@@ -84,7 +87,12 @@ class Model {
   // Throws InputError for an invalid scene (ValidateScene).
   explicit Model(Scene scene);
 
-  const Scene& scene() const { return scene_; }
+  // The scene as given (gear ratios and the units of each shaft).
+  const Scene& scene() const { return user_scene_; }
+  // The scene the model runs: every quantity on the reference shaft, no ratios (ReducedScene).
+  // Solvers read inputs from it and convert outputs back with shaft_factors().
+  const Scene& reduced_scene() const { return scene_; }
+  const ShaftFactors& shaft_factors() const { return shaft_factors_; }
   const Reduction& reduction() const { return reduction_; }
 
   int state_size() const { return nx_; }    // x
@@ -122,10 +130,12 @@ class Model {
                   const Eigen::VectorXd& zddot, const std::vector<KnownSide>& known_sides) const;
   // Phases of the initial state (iterates Classify to a fixed point).
   Phases InitialPhases(const Eigen::VectorXd& z0) const;
+  // InitialPhases(InitialState()), computed once.
+  const Phases& InitialPhases() const { return initial_phases_; }
 
   // Initial augmented state (SPEC §2.4): speeds initial.speed, quasi-static twists under the
   // loads at t = 0, gap_position·b/2 on links carrying no static torque, drive in steady state.
-  Eigen::VectorXd InitialState() const;
+  Eigen::VectorXd InitialState() const { return initial_state_; }
   // Sets the forcing part of z (w and w') to the inputs at time t (right limit).
   void SetForcing(double t, Eigen::VectorXd* z) const;
 
@@ -141,7 +151,7 @@ class Model {
   Eigen::MatrixXd LinkTorqueRows(const Phases& phases, const Eigen::MatrixXd& system_matrix) const;
 
   // Typical magnitude of each x component (for absolute tolerances and error norms).
-  Eigen::VectorXd StateScale() const;
+  Eigen::VectorXd StateScale() const { return state_scale_; }
   // Human-readable name of the phases, e.g. "upper_spindle:+sd lower_spindle:dead drive:lin".
   std::string DescribePhases(const Phases& phases) const;
 
@@ -152,9 +162,13 @@ class Model {
 
  private:
   void BuildSurfaces();
+  Eigen::VectorXd ComputeInitialState() const;
+  Eigen::VectorXd ComputeStateScale() const;
   LinkPhase PhaseFromSides(int backlash, const int* side) const;
 
-  Scene scene_;
+  Scene user_scene_;  // as given
+  Scene scene_;       // ReducedScene(user_scene_): what every member below works on
+  ShaftFactors shaft_factors_;
   Reduction reduction_;
   int nx_ = 0;
   int nw_ = 0;
@@ -168,6 +182,9 @@ class Model {
   std::vector<int> default_side_;     // side of each surface when it cannot be told
   // For rigid links: the scene masses of the group on the link's `to` side.
   std::vector<std::vector<int>> rigid_to_side_masses_;
+  Eigen::VectorXd initial_state_;  // InitialState(), computed once
+  Eigen::VectorXd state_scale_;    // StateScale(), computed once
+  Phases initial_phases_;          // InitialPhases(), computed once
 };
 
 }  // namespace millkit::driveline

@@ -140,7 +140,8 @@ Scene LoadScene(const std::string& path) {
   };
 
   for (const auto& l : root.TableArray("link")) {
-    l.RequireOnlyKeys({"name", "between", "stiffness", "damping", "backlash", "gap_position"});
+    l.RequireOnlyKeys(
+        {"name", "between", "stiffness", "damping", "backlash", "gap_position", "ratio"});
     Link link;
     link.name = l.RequiredString("name");
     if (scene.LinkIndex(link.name) >= 0) l.Fail("name", "link " + Quote(link.name) + " repeated");
@@ -153,6 +154,7 @@ Scene LoadScene(const std::string& path) {
     link.damping_Nms_per_rad = l.NonNegative("damping", l.Number("damping", 0.0));
     link.backlash_rad = l.NonNegative("backlash", l.Number("backlash", 0.0));
     link.gap_position = l.InRange("gap_position", l.Number("gap_position", -1.0), -1.0, 1.0);
+    link.ratio = l.Positive("ratio", l.Number("ratio", 1.0));
     scene.links.push_back(link);
   }
 
@@ -219,6 +221,9 @@ void ValidateScene(const Scene& scene) {
             where + " key 'backlash': must be >= 0");
     Require(l.gap_position >= -1.0 && l.gap_position <= 1.0,
             where + " key 'gap_position': must lie in [-1, 1]");
+    Require(l.ratio > 0.0 && std::isfinite(l.ratio),
+            where + " key 'ratio': must be > 0 (i = ω_from / ω_to; got " + FormatNumber(l.ratio) +
+                ")");
   }
   // Tree: n − 1 links that connect all masses (hence no cycle).
   Require(static_cast<int>(scene.links.size()) == n - 1,
@@ -259,6 +264,70 @@ void ValidateScene(const Scene& scene) {
     Require(d.limit_Nm > 0.0, file + ": [drive] key 'limit': must be > 0");
   }
   CheckSampleRate(scene);
+}
+
+ShaftFactors ComputeShaftFactors(const Scene& scene) {
+  const int n = static_cast<int>(scene.masses.size());
+  ShaftFactors factors;
+  factors.mass.assign(n, 1.0);
+  for (int l = 0; l < static_cast<int>(scene.links.size()); ++l) {
+    const Link& gear = scene.links[l];
+    if (gear.ratio == 1.0) continue;
+    factors.identity = false;
+    // The masses beyond `from`: the part of the tree reached from it without crossing the link.
+    std::vector<char> seen(n, 0);
+    std::vector<int> stack{gear.from};
+    seen[gear.from] = 1;
+    seen[gear.to] = 1;  // the link itself is not crossed
+    while (!stack.empty()) {
+      const int i = stack.back();
+      stack.pop_back();
+      factors.mass[i] *= gear.ratio;
+      for (int m = 0; m < static_cast<int>(scene.links.size()); ++m) {
+        if (m == l) continue;
+        const Link& link = scene.links[m];
+        const int other = link.from == i ? link.to : link.to == i ? link.from : -1;
+        if (other >= 0 && !seen[other]) {
+          seen[other] = 1;
+          stack.push_back(other);
+        }
+      }
+    }
+  }
+  factors.link.resize(scene.links.size());
+  for (size_t l = 0; l < scene.links.size(); ++l) {
+    factors.link[l] = factors.mass[scene.links[l].to];
+  }
+  return factors;
+}
+
+Scene ReducedScene(const Scene& scene) {
+  const ShaftFactors k = ComputeShaftFactors(scene);
+  Scene reduced = scene;
+  if (k.identity) return reduced;
+  for (size_t i = 0; i < scene.masses.size(); ++i) {
+    reduced.masses[i].inertia_kg_m2 *= k.mass[i] * k.mass[i];
+  }
+  for (size_t l = 0; l < scene.links.size(); ++l) {
+    Link& link = reduced.links[l];
+    const double f = k.link[l];
+    link.stiffness_Nm_per_rad *= f * f;
+    link.damping_Nms_per_rad *= f * f;
+    link.backlash_rad /= f;
+    link.ratio = 1.0;
+  }
+  for (auto& source : reduced.torques) {
+    for (double& value : source.values_Nm) value *= k.mass[source.mass];
+  }
+  if (reduced.drive) {
+    Drive& drive = *reduced.drive;
+    const double f = k.mass[drive.mass];
+    drive.speed_ref_rad_per_s /= f;
+    drive.kp *= f * f;
+    drive.ki *= f * f;
+    drive.limit_Nm *= f;
+  }
+  return reduced;
 }
 
 }  // namespace millkit::driveline

@@ -75,9 +75,13 @@ SimulationResult Simulate(const Model& model, const SimulationOptions& options) 
 
 std::vector<DynamicFactor> DynamicFactors(const Model& model, const SimulationResult& result) {
   const Scene& scene = model.scene();
-  const std::vector<double> static_torque = StaticLinkTorques(scene);
+  const std::vector<double> static_torque = StaticLinkTorques(scene);  // each link's units
+  // "Zero to roundoff" against the loads, compared on the reference shaft.
+  const Scene& reduced = model.reduced_scene();
   double load_scale = 0.0;
-  for (const auto& source : scene.torques) load_scale += std::abs(source.ValueAt(scene.duration_s));
+  for (const auto& source : reduced.torques) {
+    load_scale += std::abs(source.ValueAt(reduced.duration_s));
+  }
   std::vector<DynamicFactor> factors;
   for (size_t l = 0; l < scene.links.size(); ++l) {
     DynamicFactor f;
@@ -92,7 +96,8 @@ std::vector<DynamicFactor> DynamicFactors(const Model& model, const SimulationRe
       if (column.size() > 0) f.peak_torque_Nm = column.cwiseAbs().maxCoeff(&at);
       f.peak_time_s = result.time_s.empty() ? 0.0 : result.time_s[at];
     }
-    const bool defined = std::abs(f.static_torque_Nm) > 1e-12 * std::max(load_scale, 1e-300);
+    const bool defined = std::abs(f.static_torque_Nm) * model.shaft_factors().link[l] >
+                         1e-12 * std::max(load_scale, 1e-300);
     f.kd = defined ? f.peak_torque_Nm / std::abs(f.static_torque_Nm)
                    : std::numeric_limits<double>::quiet_NaN();
     factors.push_back(f);

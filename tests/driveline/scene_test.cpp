@@ -117,6 +117,20 @@ TEST_CASE("Negative damping or backlash is rejected", "[scene][bad_input]") {
              Contains("key 'backlash'") && Contains("must be >= 0"));
 }
 
+TEST_CASE("A link ratio loads, defaults to 1 and must be positive", "[scene][bad_input]") {
+  ScratchDir dir;
+  WriteText(dir / "s.toml",
+            Replace(kValidScene, "gap_position = 0.5", "gap_position = 0.5\nratio = 2.5"));
+  CHECK(LoadScene((dir / "s.toml").string()).links[0].ratio == 2.5);
+  WriteText(dir / "t.toml", kValidScene);
+  CHECK(LoadScene((dir / "t.toml").string()).links[0].ratio == 1.0);
+  for (const char* bad : {"ratio = 0.0", "ratio = -3.0"}) {
+    CHECK_THAT(LoadError(Replace(kValidScene, "gap_position = 0.5",
+                                 std::string("gap_position = 0.5\n") + bad)),
+               Contains("scene.toml") && Contains("key 'ratio'") && Contains("must be > 0"));
+  }
+}
+
 TEST_CASE("A gap_position outside [-1, 1] is rejected", "[scene][bad_input]") {
   CHECK_THAT(LoadError(Replace(kValidScene, "gap_position = 0.5", "gap_position = 1.5")),
              Contains("key 'gap_position'") && Contains("[-1, 1]"));
