@@ -1,11 +1,11 @@
 #include "identify/fit_report.h"
 
-#include <charconv>
 #include <cmath>
 
 #include <nlohmann/json.hpp>
 
 #include "io/svg_plot.h"
+#include "io/toml_section.h"
 
 namespace millkit::identify {
 namespace {
@@ -95,10 +95,7 @@ std::string FitTraceCsv(const FitResult& result) {
     text += "," + c.column + ".measured," + c.column + ".fitted," + c.column + ".residual";
   }
   text += '\n';
-  char cell[40];
-  auto append = [&](double value) {
-    text.append(cell, std::to_chars(cell, cell + sizeof(cell), value).ptr);
-  };
+  const auto append = [&text](double value) { AppendNumber(value, &text); };
   for (size_t k = 0; k < result.window_time_s.size(); ++k) {
     append(result.window_time_s[k]);
     for (const auto& c : result.channels) {

@@ -1,10 +1,10 @@
 #include "identify/oscillogram.h"
 
 #include <algorithm>
-#include <charconv>
 
 #include "io/csv.h"
 #include "io/input_error.h"
+#include "io/toml_section.h"
 
 namespace millkit::identify {
 namespace {
@@ -60,10 +60,7 @@ std::string FormatOscillogram(const Oscillogram& record) {
   std::string text = "time";
   for (const auto& name : record.channels) text += "," + name;
   text += '\n';
-  char cell[40];
-  auto append = [&](double value) {
-    text.append(cell, std::to_chars(cell, cell + sizeof(cell), value).ptr);
-  };
+  const auto append = [&text](double value) { AppendNumber(value, &text); };
   for (size_t k = 0; k < record.time_s.size(); ++k) {
     append(record.time_s[k]);
     for (const auto& channel : record.values) {

@@ -1,5 +1,4 @@
 // millkit simulate SCENE.toml --out result.csv [--solver exact|cvode] [--rtol X] [--atol X]
-#include <charconv>
 #include <iostream>
 #include <memory>
 
@@ -7,6 +6,7 @@
 #include "driveline/simulation.h"
 #include "io/atomic_file.h"
 #include "io/input_error.h"
+#include "io/toml_section.h"
 
 namespace millkit::cli {
 namespace {
@@ -30,11 +30,7 @@ void WriteResultCsv(const driveline::Scene& scene, const driveline::SimulationRe
   out << "\n";
   // Shortest round-trip text for every number (std::to_chars): exact and fast.
   std::string line;
-  char cell[40];
-  auto append = [&](double value) {
-    const auto end = std::to_chars(cell, cell + sizeof(cell), value).ptr;
-    line.append(cell, end);
-  };
+  const auto append = [&line](double value) { AppendNumber(value, &line); };
   for (size_t k = 0; k < result.time_s.size(); ++k) {
     const int row = static_cast<int>(k);
     line.clear();

@@ -13,6 +13,11 @@ std::string FormatNumber(double value) {
   return std::string(buffer, result.ptr);
 }
 
+void AppendNumber(double value, std::string* text) {
+  char buffer[64];
+  text->append(buffer, std::to_chars(buffer, buffer + sizeof(buffer), value).ptr);
+}
+
 toml::table LoadTomlFile(const std::filesystem::path& path) {
   if (!std::filesystem::exists(path)) throw InputError(path.string() + ": file not found");
   try {

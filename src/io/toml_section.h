@@ -61,5 +61,7 @@ class TomlSection {
 
 // Number formatting for messages: shortest round-trip representation.
 std::string FormatNumber(double value);
+// Appends the same shortest round-trip text to `text` without a temporary (CSV writers).
+void AppendNumber(double value, std::string* text);
 
 }  // namespace millkit
