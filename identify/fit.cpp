@@ -90,49 +90,206 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record,
 
 namespace {
 
-// Fitted vector θ = [u_1 … u_P, g_1, ô_1, …, g_C, ô_C]: u_i = (p_i − lower_i)/(upper_i − lower_i)
-// in [0, 1], g_c the gain, ô_c = o_c / S_c the offset over the channel's peak |y|.
+// The fitted quantities over R records (one simulation of the scene per record):
+//   θ = [u_1 … u_S, g_1, ô_1, …, g_B, ô_B].
+// Slot s is a free parameter, shared by every record or, for a per-record parameter (bite time),
+// one copy per record; u_s = (p_s − lower)/(upper − lower) in [0, 1]. Block b is one channel of
+// one record, with its own gain g_b and offset ô_b = o_b / S_b (S_b the block's peak |y|).
+// Residuals are the blocks' samples in the current window, block after block.
 class FitModel {
  public:
-  FitModel(const driveline::Scene& scene, const Oscillogram& record, const FitConfig& config)
-      : scene_(scene), record_(record), config_(config) {
-    std::tie(begin_, end_) = record.WindowRange(config.window_start_s, config.window_end_s);
-    full_end_ = end_;
-    for (const auto& c : config.channels) {
-      double peak = 0.0;
-      for (int k = begin_; k < end_; ++k) {
-        peak = std::max(peak, std::abs(record.values[c.record_channel][k]));
+  struct Slot {
+    int free = 0;     // index in config.free
+    int record = -1;  // −1: shared by every record
+    std::string name;
+  };
+  struct Block {
+    int record = 0;
+    int channel = 0;  // index in config.channels
+    int column = 0;   // index in the record's channels
+    int begin = 0;    // window samples [begin, end) of the record
+    int end = 0;
+    int full_end = 0;
+    double scale = 1.0;
+    double weight = 1.0;
+    Eigen::VectorXd measured;
+    int offset = 0;   // first residual of the block
+  };
+
+  FitModel(const driveline::Scene& scene, const std::vector<Oscillogram>& records,
+           const FitConfig& config)
+      : scene_(scene), records_(records), config_(config) {
+    const int record_count = static_cast<int>(records.size());
+    const auto labels = RecordLabels(records);
+    for (int i = 0; i < static_cast<int>(config.free.size()); ++i) {
+      const auto& name = config.free[i].parameter.name;
+      if (config.free[i].per_record && record_count > 1) {
+        for (int r = 0; r < record_count; ++r) slots_.push_back({i, r, name + "@" + labels[r]});
+      } else {
+        slots_.push_back({i, -1, name});
       }
-      scale_.push_back(std::max(peak, std::numeric_limits<double>::min()));
-      weight_.push_back(c.weight ? *c.weight : 1.0 / scale_.back());
     }
-    SetWindowEnd(config.window_end_s);
+    for (int r = 0; r < record_count; ++r) {
+      const auto& record = records[r];
+      const auto [begin, end] = record.WindowRange(config.window_start_s, config.window_end_s);
+      for (int c = 0; c < static_cast<int>(config.channels.size()); ++c) {
+        Block b;
+        b.record = r;
+        b.channel = c;
+        b.column = record.ChannelIndex(config.channels[c].column);
+        b.begin = begin;
+        b.end = b.full_end = end;
+        double peak = 0.0;
+        for (int k = begin; k < end; ++k) peak = std::max(peak, std::abs(record.values[b.column][k]));
+        b.scale = std::max(peak, std::numeric_limits<double>::min());
+        b.weight = config.channels[c].weight ? *config.channels[c].weight : 1.0 / b.scale;
+        blocks_.push_back(std::move(b));
+      }
+      onsets_.push_back(OnsetTime(r));
+    }
+    SetStage(1.0);
   }
 
-  // Fits the part of the window up to `end_s` (continuation over the window length); gains,
-  // offsets, scales and weights keep their meaning.
-  void SetWindowEnd(double end_s) {
-    end_ = std::min(full_end_, record_.WindowRange(config_.window_start_s, end_s).second);
-    measured_.clear();
-    for (const auto& c : config_.channels) {
-      Eigen::VectorXd y(samples());
-      for (int k = 0; k < samples(); ++k) y(k) = record_.values[c.record_channel][begin_ + k];
-      measured_.push_back(std::move(y));
+  // Continuation over the window length: each record's window ends at onset + (end − onset)/d
+  // (d = 1: the whole window); gains, offsets, scales and weights keep their meaning.
+  void SetStage(double divisor) {
+    int offset = 0;
+    for (auto& b : blocks_) {
+      const auto& record = records_[b.record];
+      if (divisor == 1.0) {
+        b.end = b.full_end;
+      } else {
+        const double onset = onsets_[b.record];
+        const double end_s = onset + (config_.window_end_s - onset) / divisor;
+        b.end = std::min(b.full_end, record.WindowRange(config_.window_start_s, end_s).second);
+      }
+      b.measured = Eigen::Map<const Eigen::VectorXd>(record.values[b.column].data() + b.begin,
+                                                     b.end - b.begin);
+      b.offset = offset;
+      offset += b.end - b.begin;
+    }
+    residuals_ = offset;
+  }
+  // The fewest window samples of any block at this stage.
+  int FewestSamples(double divisor) {
+    SetStage(divisor);
+    int fewest = std::numeric_limits<int>::max();
+    for (const auto& b : blocks_) fewest = std::min(fewest, b.end - b.begin);
+    return fewest;
+  }
+
+  int parameters() const { return static_cast<int>(slots_.size()); }
+  int blocks() const { return static_cast<int>(blocks_.size()); }
+  int size() const { return parameters() + 2 * blocks(); }
+  int gain_index(int b) const { return parameters() + 2 * b; }
+  int offset_index(int b) const { return parameters() + 2 * b + 1; }
+  int residuals() const { return residuals_; }
+  const Block& block(int b) const { return blocks_[b]; }
+  const Slot& slot(int s) const { return slots_[s]; }
+  const FreeParameter& free(int s) const { return config_.free[slots_[s].free]; }
+  const ChannelSpec& channel_spec(int b) const { return config_.channels[blocks_[b].channel]; }
+  const Oscillogram& record(int r) const { return records_[r]; }
+  void set_weight(int b, double w) { blocks_[b].weight = w; }
+  long simulations() const { return simulations_; }
+
+  double Physical(int s, double u) const {
+    const auto& p = free(s);
+    return p.lower + u * (p.upper - p.lower);
+  }
+  double Normalised(int s, double value) const {
+    const auto& p = free(s);
+    return (value - p.lower) / (p.upper - p.lower);
+  }
+
+  // Simulated link torque of every block (m[b]); with `only_record` ≥ 0 only that record's
+  // blocks are simulated (the others are left as they are).
+  bool Torques(const double* theta, std::vector<Eigen::VectorXd>* m, int only_record = -1) const {
+    m->resize(blocks_.size());
+    std::vector<Eigen::VectorXd> torques;
+    for (int r = 0; r < static_cast<int>(records_.size()); ++r) {
+      if (only_record >= 0 && r != only_record) continue;
+      driveline::Scene scene = scene_;
+      for (int s = 0; s < parameters(); ++s) {
+        if (slots_[s].record < 0 || slots_[s].record == r) {
+          free(s).parameter.Set(Physical(s, theta[s]), &scene);
+        }
+      }
+      // Blocks of a record are consecutive, in config channel order.
+      const Block& first = blocks_[r * config_.channels.size()];
+      ++simulations_;
+      std::string why;
+      if (!SimulateChannels(scene, records_[r], config_.channels, first.begin, first.end,
+                            &torques, &why)) {
+        last_failure_ = records_.size() > 1 ? records_[r].source + ": " + why : why;
+        return false;
+      }
+      for (size_t c = 0; c < torques.size(); ++c) {
+        (*m)[r * config_.channels.size() + c] = std::move(torques[c]);
+      }
+    }
+    return true;
+  }
+  const std::string& last_failure() const { return last_failure_; }
+
+  // Weighted residuals g_b m_b + o_b − y_b of every block.
+  void Residuals(const std::vector<Eigen::VectorXd>& m, const double* theta, double* r) const {
+    for (int b = 0; b < blocks(); ++b) {
+      const auto& block = blocks_[b];
+      const double g = theta[gain_index(b)];
+      const double o = theta[offset_index(b)] * block.scale;
+      Eigen::Map<Eigen::VectorXd>(r + block.offset, block.measured.size()) =
+          block.weight * (g * m[b].array() + o - block.measured.array()).matrix();
     }
   }
 
-  // When the response starts: the first time any channel leaves its initial level by a fifth of
-  // its largest excursion in the window.
-  double OnsetTime() const {
-    double onset = record_.time_s[full_end_ - 1];
-    for (const auto& c : config_.channels) {
-      const auto& y = record_.values[c.record_channel];
-      const double initial = y[begin_];
+  // Gains and offsets that minimise the residual for fixed torques m (linear least squares).
+  void SolveNuisance(const std::vector<Eigen::VectorXd>& m, double* theta) const {
+    for (int b = 0; b < blocks(); ++b) {
+      const auto& spec = channel_spec(b);
+      const auto& y = blocks_[b].measured;
+      const auto& x = m[b];
+      const double scale = blocks_[b].scale;
+      double& g = theta[gain_index(b)];
+      double& o = theta[offset_index(b)];
+      const double n = static_cast<double>(y.size());
+      if (spec.fit_gain && spec.fit_offset) {
+        const double mm = x.mean();
+        const double ym = y.mean();
+        const double sxx = (x.array() - mm).square().sum();
+        const double sxy = ((x.array() - mm) * (y.array() - ym)).sum();
+        g = sxx > 0.0 ? sxy / sxx : 1.0;
+        o = (ym - g * mm) / scale;
+      } else if (spec.fit_gain) {
+        const double mm2 = x.squaredNorm();
+        g = mm2 > 0.0 ? (x.dot(y) - o * scale * x.sum()) / mm2 : 1.0;
+      } else if (spec.fit_offset) {
+        o = (y - g * x).sum() / n / scale;
+      }
+    }
+  }
+
+  // Name of block b's gain or offset: gain.<column>, with @<record> when there are several.
+  std::string NuisanceName(int b, bool gain) const {
+    std::string name = (gain ? "gain." : "offset.") + channel_spec(b).column;
+    if (records_.size() > 1) name += "@" + RecordLabels(records_)[blocks_[b].record];
+    return name;
+  }
+
+ private:
+  // When record r's response starts: the first time any channel leaves its initial level by a
+  // fifth of its largest excursion in the window.
+  double OnsetTime(int r) const {
+    const auto& record = records_[r];
+    double onset = record.time_s[blocks_.back().full_end - 1];
+    for (const auto& b : blocks_) {
+      if (b.record != r) continue;
+      const auto& y = record.values[b.column];
+      const double initial = y[b.begin];
       double excursion = 0.0;
-      for (int k = begin_; k < full_end_; ++k) excursion = std::max(excursion, std::abs(y[k] - initial));
-      for (int k = begin_; k < full_end_; ++k) {
+      for (int k = b.begin; k < b.full_end; ++k) excursion = std::max(excursion, std::abs(y[k] - initial));
+      for (int k = b.begin; k < b.full_end; ++k) {
         if (std::abs(y[k] - initial) > 0.2 * excursion) {
-          onset = std::min(onset, record_.time_s[k]);
+          onset = std::min(onset, record.time_s[k]);
           break;
         }
       }
@@ -140,95 +297,20 @@ class FitModel {
     return onset;
   }
 
-  int parameters() const { return static_cast<int>(config_.free.size()); }
-  int channels() const { return static_cast<int>(config_.channels.size()); }
-  int size() const { return parameters() + 2 * channels(); }
-  int gain_index(int c) const { return parameters() + 2 * c; }
-  int offset_index(int c) const { return parameters() + 2 * c + 1; }
-  int samples() const { return end_ - begin_; }
-  int residuals() const { return samples() * channels(); }
-  int begin() const { return begin_; }
-  const FitConfig& config() const { return config_; }
-  double scale(int c) const { return scale_[c]; }
-  double weight(int c) const { return weight_[c]; }
-  void set_weight(int c, double w) { weight_[c] = w; }
-  const Eigen::VectorXd& measured(int c) const { return measured_[c]; }
-  long simulations() const { return simulations_; }
-
-  double Physical(int i, double u) const {
-    const auto& p = config_.free[i];
-    return p.lower + u * (p.upper - p.lower);
-  }
-  double Normalised(int i, double value) const {
-    const auto& p = config_.free[i];
-    return (value - p.lower) / (p.upper - p.lower);
-  }
-
-  bool Torques(const double* theta, std::vector<Eigen::VectorXd>* m) const {
-    driveline::Scene scene = scene_;
-    for (int i = 0; i < parameters(); ++i) {
-      config_.free[i].parameter.Set(Physical(i, theta[i]), &scene);
-    }
-    ++simulations_;
-    std::string why;
-    if (!SimulateChannels(scene, record_, config_.channels, begin_, end_, m, &why)) {
-      last_failure_ = why;
-      return false;
-    }
-    return true;
-  }
-  const std::string& last_failure() const { return last_failure_; }
-
-  // Weighted residuals of channel c for torques m and the channel's gain and offset.
-  void Residuals(const std::vector<Eigen::VectorXd>& m, const double* theta, double* r) const {
-    for (int c = 0; c < channels(); ++c) {
-      const double g = theta[gain_index(c)];
-      const double o = theta[offset_index(c)] * scale_[c];
-      Eigen::Map<Eigen::VectorXd>(r + c * samples(), samples()) =
-          weight_[c] * (g * m[c].array() + o - measured_[c].array()).matrix();
-    }
-  }
-
-  // Gains and offsets that minimise the residual for fixed torques m (linear least squares).
-  void SolveNuisance(const std::vector<Eigen::VectorXd>& m, double* theta) const {
-    for (int c = 0; c < channels(); ++c) {
-      const auto& spec = config_.channels[c];
-      const auto& y = measured_[c];
-      double& g = theta[gain_index(c)];
-      double& o = theta[offset_index(c)];
-      const double n = static_cast<double>(samples());
-      if (spec.fit_gain && spec.fit_offset) {
-        const double mm = m[c].mean();
-        const double ym = y.mean();
-        const double sxx = (m[c].array() - mm).square().sum();
-        const double sxy = ((m[c].array() - mm) * (y.array() - ym)).sum();
-        g = sxx > 0.0 ? sxy / sxx : 1.0;
-        o = (ym - g * mm) / scale_[c];
-      } else if (spec.fit_gain) {
-        const double mm2 = m[c].squaredNorm();
-        g = mm2 > 0.0 ? (m[c].dot(y) - o * scale_[c] * m[c].sum()) / mm2 : 1.0;
-      } else if (spec.fit_offset) {
-        o = (y - g * m[c]).sum() / n / scale_[c];
-      }
-    }
-  }
-
- private:
   const driveline::Scene& scene_;
-  const Oscillogram& record_;
+  const std::vector<Oscillogram>& records_;
   const FitConfig& config_;
-  int begin_ = 0;
-  int end_ = 0;
-  int full_end_ = 0;
-  std::vector<double> scale_;
-  std::vector<double> weight_;
-  std::vector<Eigen::VectorXd> measured_;
+  std::vector<Slot> slots_;
+  std::vector<Block> blocks_;
+  std::vector<double> onsets_;
+  int residuals_ = 0;
   mutable long simulations_ = 0;
   mutable std::string last_failure_;
 };
 
-// The whole record misfit as one Ceres residual block over θ. Jacobian: central differences of
-// the exact solution for the scene parameters, analytic for gains and offsets.
+// The whole misfit as one Ceres residual block over θ. Jacobian: finite differences of the exact
+// solution for the scene parameters (a per-record slot re-simulates only its record), analytic
+// for gains and offsets.
 class RecordResidual : public ceres::CostFunction {
  public:
   // central: central differences (2 simulations per parameter, error ~ roundoff/step + step²),
@@ -254,81 +336,83 @@ class RecordResidual : public ceres::CostFunction {
     if (!model_.Torques(theta, &m)) return false;
     model_.Residuals(m, theta, residuals);
     if (jacobians == nullptr || jacobians[0] == nullptr) return true;
-    const int n = model_.samples();
     const int size = model_.size();
     Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> jac(
         jacobians[0], model_.residuals(), size);
     jac.setZero();
-    for (int c = 0; c < model_.channels(); ++c) {
-      const double w = model_.weight(c);
-      jac.block(c * n, model_.gain_index(c), n, 1) = w * m[c];
-      jac.block(c * n, model_.offset_index(c), n, 1).setConstant(w * model_.scale(c));
+    for (int b = 0; b < model_.blocks(); ++b) {
+      const auto& block = model_.block(b);
+      const int n = static_cast<int>(block.measured.size());
+      jac.block(block.offset, model_.gain_index(b), n, 1) = block.weight * m[b];
+      jac.block(block.offset, model_.offset_index(b), n, 1).setConstant(block.weight * block.scale);
     }
     std::vector<double> probe(theta, theta + size);
-    std::vector<Eigen::VectorXd> m1, m2;
+    std::vector<Eigen::VectorXd> m1 = m, m2 = m;
+    // Writes column i from the probes' torques: d = (weighted) derivative of block b.
+    const auto write = [&](int i, const auto& derivative_of) {
+      const int only = model_.slot(i).record;
+      for (int b = 0; b < model_.blocks(); ++b) {
+        const auto& block = model_.block(b);
+        if (only >= 0 && block.record != only) continue;
+        jac.block(block.offset, i, block.measured.size(), 1) =
+            block.weight * theta[model_.gain_index(b)] * derivative_of(b);
+      }
+      if (transformed_) jac.col(i) *= 0.5 * std::cos(parameters[0][i]);
+    };
     for (int i = 0; i < model_.parameters(); ++i) {
-      const double u = theta[i];
-      double h = step_;
-      // Central where both neighbours are inside [0, 1]; second-order one-sided at a bound.
-      int kind = 0;  // 0 central, +1 forward, −1 backward
-      if (u - h < 0.0) kind = +1;
-      else if (u + h > 1.0) kind = -1;
-      Eigen::VectorXd derivative;
+      if (std::find(frozen_.begin(), frozen_.end(), i) != frozen_.end()) continue;
+      const int only = model_.slot(i).record;
+      const double u0 = theta[i];
+      const double h = step_;
+      const auto simulate = [&](double value, std::vector<Eigen::VectorXd>* out) {
+        probe[i] = value;
+        const bool ok = model_.Torques(probe.data(), out, only);
+        probe[i] = u0;
+        return ok;
+      };
       if (!central_) {
         // A probe the solver cannot run (a rare event configuration it rejects) is retried on
         // the other side before the evaluation is declared failed.
-        double signed_step = u + h > 1.0 ? -h : h;
-        probe[i] = u + signed_step;
-        if (!model_.Torques(probe.data(), &m1)) {
+        double signed_step = u0 + h > 1.0 ? -h : h;
+        if (!simulate(u0 + signed_step, &m1)) {
           signed_step = -signed_step;
-          probe[i] = u + signed_step;
-          if (signed_step + u < 0.0 || signed_step + u > 1.0 ||
-              !model_.Torques(probe.data(), &m1)) {
+          if (u0 + signed_step < 0.0 || u0 + signed_step > 1.0 || !simulate(u0 + signed_step, &m1)) {
             return false;
           }
         }
-        probe[i] = u;
-        for (int c = 0; c < model_.channels(); ++c) {
-          jac.block(c * n, i, n, 1) = model_.weight(c) * theta[model_.gain_index(c)] *
-                                      (m1[c] - m[c]) / signed_step;
-        }
-        if (transformed_) jac.col(i) *= 0.5 * std::cos(parameters[0][i]);
+        write(i, [&](int b) { return Eigen::VectorXd((m1[b] - m[b]) / signed_step); });
         continue;
       }
       // Central where both neighbours are inside [0, 1] and simulate; else second-order
       // one-sided on the side that does.
+      int kind = 0;  // 0 central, +1 forward, −1 backward
+      if (u0 - h < 0.0) kind = +1;
+      else if (u0 + h > 1.0) kind = -1;
       bool done = false;
       if (kind == 0) {
-        probe[i] = u + h;
-        const bool up = model_.Torques(probe.data(), &m1);
-        probe[i] = u - h;
-        const bool down = up && model_.Torques(probe.data(), &m2);
+        const bool up = simulate(u0 + h, &m1);
+        const bool down = up && simulate(u0 - h, &m2);
         done = up && down;
         if (!done) kind = up ? +1 : -1;
       }
       if (!done) {
-        if (u + 2 * kind * h < 0.0 || u + 2 * kind * h > 1.0) return false;
-        probe[i] = u + kind * h;
-        if (!model_.Torques(probe.data(), &m1)) return false;
-        probe[i] = u + 2 * kind * h;
-        if (!model_.Torques(probe.data(), &m2)) return false;
+        if (u0 + 2 * kind * h < 0.0 || u0 + 2 * kind * h > 1.0) return false;
+        if (!simulate(u0 + kind * h, &m1) || !simulate(u0 + 2 * kind * h, &m2)) return false;
+        write(i, [&](int b) {
+          return Eigen::VectorXd(kind * (4.0 * m1[b] - 3.0 * m[b] - m2[b]) / (2.0 * h));
+        });
+      } else {
+        write(i, [&](int b) { return Eigen::VectorXd((m1[b] - m2[b]) / (2.0 * h)); });
       }
-      probe[i] = u;
-      for (int c = 0; c < model_.channels(); ++c) {
-        if (kind == 0) {
-          derivative = (m1[c] - m2[c]) / (2.0 * h);
-        } else {
-          derivative = kind * (4.0 * m1[c] - 3.0 * m[c] - m2[c]) / (2.0 * h);
-        }
-        jac.block(c * n, i, n, 1) =
-            model_.weight(c) * theta[model_.gain_index(c)] * derivative;
-      }
-      if (transformed_) jac.col(i) *= 0.5 * std::cos(parameters[0][i]);
     }
     return true;
   }
 
+  // Held constant by the problem: their Jacobian columns are left zero, unsimulated.
+  void Freeze(const std::vector<int>& slots) { frozen_ = slots; }
+
  private:
+  std::vector<int> frozen_;
   const FitModel& model_;
   double step_;
   bool central_;
@@ -344,17 +428,18 @@ struct LocalFit {
 
 std::vector<int> ConstantIndices(const FitModel& model) {
   std::vector<int> constant;
-  for (int c = 0; c < model.channels(); ++c) {
-    if (!model.config().channels[c].fit_gain) constant.push_back(model.gain_index(c));
-    if (!model.config().channels[c].fit_offset) constant.push_back(model.offset_index(c));
+  for (int b = 0; b < model.blocks(); ++b) {
+    if (!model.channel_spec(b).fit_gain) constant.push_back(model.gain_index(b));
+    if (!model.channel_spec(b).fit_offset) constant.push_back(model.offset_index(b));
   }
   return constant;
 }
 
 void SetUpProblem(const FitModel& model, RecordResidual* residual, std::vector<double>* theta,
-                  ceres::Problem* problem) {
+                  ceres::Problem* problem, const std::vector<int>& frozen = {}) {
   problem->AddResidualBlock(residual, nullptr, theta->data());
-  const auto constant = ConstantIndices(model);
+  auto constant = ConstantIndices(model);
+  constant.insert(constant.end(), frozen.begin(), frozen.end());
   if (!constant.empty()) {
     problem->SetManifold(theta->data(), new ceres::SubsetManifold(model.size(), constant));
   }
@@ -369,19 +454,21 @@ ceres::Problem::Options ProblemOptions() {
 // A continuation stage (`final_stage` false) stops at a loose tolerance: its answer only has to
 // start the next stage inside the right basin.
 LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<double> theta,
-                bool final_stage) {
+                bool final_stage, int stage_iterations = kStageIterations,
+                const std::vector<int>& frozen = {}) {
   RecordResidual residual(model, options.derivative_step, options.central_differences,
                           /*transformed=*/true);
+  residual.Freeze(frozen);
   ceres::Problem problem(ProblemOptions());
   LocalFit fit;
   fit.theta = std::move(theta);
   for (int i = 0; i < model.parameters(); ++i) {
     fit.theta[i] = std::asin(std::clamp(2.0 * fit.theta[i] - 1.0, -1.0, 1.0));
   }
-  SetUpProblem(model, &residual, &fit.theta, &problem);
+  SetUpProblem(model, &residual, &fit.theta, &problem, frozen);
   ceres::Solver::Options solver;
   solver.linear_solver_type = ceres::DENSE_QR;
-  solver.max_num_iterations = final_stage ? options.max_iterations : kStageIterations;
+  solver.max_num_iterations = final_stage ? options.max_iterations : stage_iterations;
   solver.function_tolerance = final_stage ? 1e-15 : 1e-6;
   solver.parameter_tolerance = final_stage ? 1e-12 : 1e-6;
   solver.gradient_tolerance = 1e-20;
@@ -412,7 +499,7 @@ std::vector<std::vector<double>> ScanStarts(const FitModel& model, const FitConf
                                             std::vector<double> start, int* evaluated) {
   std::vector<int> scanned;
   for (int i = 0; i < model.parameters(); ++i) {
-    if (config.free[i].scan) scanned.push_back(i);
+    if (model.free(i).scan) scanned.push_back(i);
   }
   const int points = scanned.empty() ? 0 : config.scan_points;
   std::mt19937_64 random(config.seed);
@@ -511,15 +598,16 @@ std::vector<double> CramerRaoBound(const driveline::Scene& scene, const Oscillog
                                    const FitConfig& config, const std::vector<double>& noise_Nm,
                                    const FitOptions& options) {
   options.Validate();
-  ValidateFitConfig(config, record, "fit config");
-  FitModel model(scene, record, config);
+  const std::vector<Oscillogram> records = {record};
+  ValidateFitConfig(config, records, "fit config");
+  FitModel model(scene, records, config);
   std::vector<double> theta(model.size(), 0.0);
   for (int i = 0; i < model.parameters(); ++i) {
-    theta[i] = model.Normalised(i, config.free[i].parameter.Get(scene));
+    theta[i] = model.Normalised(i, model.free(i).parameter.Get(scene));
   }
-  for (int c = 0; c < model.channels(); ++c) {
-    theta[model.gain_index(c)] = 1.0;
-    model.set_weight(c, 1.0 / noise_Nm.at(c));
+  for (int b = 0; b < model.blocks(); ++b) {
+    theta[model.gain_index(b)] = 1.0;
+    model.set_weight(b, 1.0 / noise_Nm.at(b));
   }
   RecordResidual residual(model, options.derivative_step, /*central=*/true);
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jac(model.residuals(),
@@ -543,7 +631,7 @@ std::vector<double> CramerRaoBound(const driveline::Scene& scene, const Oscillog
       ldlt.solve(Eigen::MatrixXd::Identity(information.rows(), information.cols()));
   std::vector<double> bound;
   for (int i = 0; i < model.parameters(); ++i) {
-    const auto& free = config.free[i];
+    const auto& free = model.free(i);
     const double variance = inverse(i, i);
     bound.push_back(variance > 0.0 && std::isfinite(variance)
                         ? std::sqrt(variance) * (free.upper - free.lower)
@@ -554,32 +642,32 @@ std::vector<double> CramerRaoBound(const driveline::Scene& scene, const Oscillog
 
 FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const FitConfig& config,
               const FitOptions& options) {
+  return Fit(scene, std::vector<Oscillogram>{record}, config, options);
+}
+
+FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& records,
+              const FitConfig& config, const FitOptions& options) {
   options.Validate();
-  ValidateFitConfig(config, record, "fit config");
+  ValidateFitConfig(config, records, "fit config");
   const auto clock_start = std::chrono::steady_clock::now();
-  FitModel model(scene, record, config);
+  FitModel model(scene, records, config);
   FitResult result;
   auto& summary = result.summary;
 
   // Continuation over the window length: the first stage ends shortly after the response starts,
   // where impact timing (gaps, bite time) dominates and the misfit has few local minima; each
   // stage doubles the fitted span and starts from the previous stage's answer.
-  std::vector<double> stage_ends;
-  {
-    const double onset = model.OnsetTime();
-    const double span = config.window_end_s - onset;
-    for (int j = kContinuationStages - 1; j >= 1; --j) {
-      const double end = onset + span / static_cast<double>(1 << j);
-      const auto [first, last] = record.WindowRange(config.window_start_s, end);
-      if (last - first >= kMinRecordSamples) stage_ends.push_back(end);
-    }
-    stage_ends.push_back(config.window_end_s);
+  std::vector<double> stages;  // window divisors, the last 1 (the whole window)
+  for (int j = kContinuationStages - 1; j >= 1; --j) {
+    const double divisor = static_cast<double>(1 << j);
+    if (model.FewestSamples(divisor) >= kMinRecordSamples) stages.push_back(divisor);
   }
-  model.SetWindowEnd(stage_ends.front());
+  stages.push_back(1.0);
+  model.SetStage(stages.front());
 
   std::vector<double> start(model.size(), 0.0);
-  for (int i = 0; i < model.parameters(); ++i) start[i] = model.Normalised(i, config.free[i].start);
-  for (int c = 0; c < model.channels(); ++c) start[model.gain_index(c)] = 1.0;
+  for (int i = 0; i < model.parameters(); ++i) start[i] = model.Normalised(i, model.free(i).start);
+  for (int b = 0; b < model.blocks(); ++b) start[model.gain_index(b)] = 1.0;
   {
     std::vector<Eigen::VectorXd> m;
     if (!model.Torques(start.data(), &m)) {
@@ -588,27 +676,15 @@ FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const Fi
     }
     model.SolveNuisance(m, start.data());
     // Only the fitted nuisance values move from their defaults.
-    for (int c = 0; c < model.channels(); ++c) {
-      if (!config.channels[c].fit_gain) start[model.gain_index(c)] = 1.0;
-      if (!config.channels[c].fit_offset) start[model.offset_index(c)] = 0.0;
+    for (int b = 0; b < model.blocks(); ++b) {
+      if (!model.channel_spec(b).fit_gain) start[model.gain_index(b)] = 1.0;
+      if (!model.channel_spec(b).fit_offset) start[model.offset_index(b)] = 0.0;
     }
   }
   const auto starts = ScanStarts(model, config, start, &summary.scan_points);
 
   LocalFit best;
-  for (const auto& theta : starts) {
-    LocalFit fit;
-    fit.theta = theta;
-    for (const double end : stage_ends) {
-      model.SetWindowEnd(end);
-      LocalFit stage = Refine(model, options, fit.theta, end == stage_ends.back());
-      if (!stage.usable) {
-        fit = std::move(stage);
-        break;
-      }
-      fit = std::move(stage);
-    }
-    model.SetWindowEnd(stage_ends.front());
+  const auto record_minimum = [&](LocalFit fit) {
     LocalMinimum minimum;
     minimum.cost = fit.cost;
     minimum.iterations = static_cast<int>(fit.summary.iterations.size());
@@ -618,8 +694,47 @@ FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const Fi
     }
     result.minima.push_back(minimum);
     if (fit.cost < best.cost) best = std::move(fit);
+  };
+  // The first kTimingOnlyStages stages fit the scanned parameters (gaps, bite time: the impact
+  // timing a short window sees) with gains and offsets; the others (dampings, stiffness), which a
+  // short window hardly constrains, are held at their start there.
+  std::vector<int> unscanned;
+  for (int i = 0; i < model.parameters(); ++i) {
+    if (!model.free(i).scan) unscanned.push_back(i);
   }
-  model.SetWindowEnd(config.window_end_s);
+  if (static_cast<int>(unscanned.size()) == model.parameters()) unscanned.clear();
+  for (const auto& theta : starts) {
+    LocalFit fit;
+    fit.theta = theta;
+    int stage_number = 0;
+    for (const double divisor : stages) {
+      model.SetStage(divisor);
+      LocalFit stage = Refine(model, options, fit.theta, divisor == 1.0, kStageIterations,
+                              stage_number++ < kTimingOnlyStages ? unscanned : std::vector<int>{});
+      if (!stage.usable) {
+        fit = std::move(stage);
+        break;
+      }
+      fit = std::move(stage);
+    }
+    const double continued_cost = fit.cost;
+    record_minimum(std::move(fit));
+    // The same start refined on the whole window at once. A short stage sees the dampings
+    // poorly, and noise can carry them into the basin of a neighbouring minimum of the whole
+    // window (a dead-zone re-entry that only just happens or not); a fit from a start inside the
+    // right basin stays there. A capped try first: it is finished only when it comes near the
+    // continued fit (from a poor start it usually wanders to a bound and is dropped).
+    if (stages.size() > 1) {
+      model.SetStage(1.0);
+      LocalFit direct = Refine(model, options, theta, /*final_stage=*/false, kDirectTryIterations);
+      if (direct.usable && direct.cost < kDirectRetryFactor * continued_cost) {
+        direct = Refine(model, options, direct.theta, /*final_stage=*/true);
+      }
+      record_minimum(std::move(direct));
+    }
+    model.SetStage(stages.front());
+  }
+  model.SetStage(1.0);
   summary.starts = static_cast<int>(starts.size());
   if (!best.usable) {
     summary.message = "no start converged to a usable solution";
@@ -633,8 +748,7 @@ FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const Fi
     }
   }
 
-  // Noise weights for the channels without a user weight, then a polish with them.
-  const int n = model.samples();
+  // Noise weights for the blocks without a user weight, then a polish with them.
   const int fitted_count = model.size() - static_cast<int>(ConstantIndices(model).size());
   const double dof = static_cast<double>(model.residuals() - fitted_count);
   if (dof <= 0.0) {
@@ -647,11 +761,14 @@ FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const Fi
     bool reweighted = false;
     model.Torques(best.theta.data(), &m);
     model.Residuals(m, best.theta.data(), r.data());
-    for (int c = 0; c < model.channels(); ++c) {
-      if (config.channels[c].weight) continue;
-      const double rms = r.segment(c * n, n).norm() / model.weight(c) / std::sqrt(n);
-      const double noise = std::max(rms * std::sqrt(model.residuals() / dof), 1e-13 * model.scale(c));
-      model.set_weight(c, 1.0 / noise);
+    for (int b = 0; b < model.blocks(); ++b) {
+      if (model.channel_spec(b).weight) continue;
+      const auto& block = model.block(b);
+      const int n = static_cast<int>(block.measured.size());
+      const double rms = r.segment(block.offset, n).norm() / block.weight / std::sqrt(n);
+      const double noise =
+          std::max(rms * std::sqrt(model.residuals() / dof), 1e-13 * block.scale);
+      model.set_weight(b, 1.0 / noise);
       reweighted = true;
     }
     if (reweighted) {
@@ -704,11 +821,13 @@ FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const Fi
   for (int j = 0; j < model.size(); ++j) {
     if (std::find(constant.begin(), constant.end(), j) == constant.end()) fitted.push_back(j);
   }
+  const auto labels = RecordLabels(records);
   for (int i = 0; i < model.parameters(); ++i) {
-    const auto& free = config.free[i];
+    const auto& free = model.free(i);
     ParameterEstimate e;
-    e.name = free.parameter.name;
+    e.name = model.slot(i).name;
     e.unit = free.parameter.unit;
+    if (model.slot(i).record >= 0) e.record = records[model.slot(i).record].source;
     e.value = model.Physical(i, best.theta[i]);
     e.standard_error = std::sqrt(covariance(i, i)) * (free.upper - free.lower);
     e.start = free.start;
@@ -720,31 +839,37 @@ FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const Fi
   FlagUnidentifiable(jac, fitted, summary.noise_scale, &result);
 
   model.Torques(best.theta.data(), &m);
-  for (int c = 0; c < model.channels(); ++c) {
+  for (int b = 0; b < model.blocks(); ++b) {
+    const auto& block = model.block(b);
+    const auto& spec = model.channel_spec(b);
+    const auto& record = model.record(block.record);
     ChannelEstimate e;
-    e.column = config.channels[c].column;
-    e.link = config.channels[c].link;
-    e.gain = best.theta[model.gain_index(c)];
-    e.gain_se = std::sqrt(covariance(model.gain_index(c), model.gain_index(c)));
-    e.offset = best.theta[model.offset_index(c)] * model.scale(c);
-    e.offset_se = std::sqrt(covariance(model.offset_index(c), model.offset_index(c))) * model.scale(c);
-    e.weight = model.weight(c);
+    e.column = spec.column;
+    e.link = spec.link;
+    e.record = record.source;
+    e.record_label = labels[block.record];
+    e.gain = best.theta[model.gain_index(b)];
+    e.gain_se = std::sqrt(covariance(model.gain_index(b), model.gain_index(b)));
+    e.offset = best.theta[model.offset_index(b)] * block.scale;
+    e.offset_se =
+        std::sqrt(covariance(model.offset_index(b), model.offset_index(b))) * block.scale;
+    e.weight = block.weight;
+    const int n = static_cast<int>(block.measured.size());
     e.samples = n;
-    const Eigen::VectorXd fitted_trace = e.gain * m[c].array() + e.offset;
+    const Eigen::VectorXd fitted_trace = e.gain * m[b].array() + e.offset;
     e.fitted.assign(fitted_trace.data(), fitted_trace.data() + n);
-    e.measured.assign(model.measured(c).data(), model.measured(c).data() + n);
-    e.rms_residual = (fitted_trace - model.measured(c)).norm() / std::sqrt(n);
+    e.measured.assign(block.measured.data(), block.measured.data() + n);
+    e.time_s.assign(record.time_s.begin() + block.begin, record.time_s.begin() + block.end);
+    e.rms_residual = (fitted_trace - block.measured).norm() / std::sqrt(n);
     result.channels.push_back(e);
   }
-  for (int k = 0; k < n; ++k) result.window_time_s.push_back(record.time_s[model.begin() + k]);
 
   for (int j : fitted) {
     if (j < model.parameters()) {
-      result.quantity_names.push_back(config.free[j].parameter.name);
+      result.quantity_names.push_back(model.slot(j).name);
     } else {
-      const int c = (j - model.parameters()) / 2;
-      const bool gain = j == model.gain_index(c);
-      result.quantity_names.push_back((gain ? "gain." : "offset.") + config.channels[c].column);
+      const int b = (j - model.parameters()) / 2;
+      result.quantity_names.push_back(model.NuisanceName(b, j == model.gain_index(b)));
     }
   }
   result.correlation.resize(fitted.size(), fitted.size());

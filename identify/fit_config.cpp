@@ -40,14 +40,32 @@ void CheckFreeParameter(const FreeParameter& p, const std::string& where) {
   }
 }
 
+// Each record is its own bite: its load starts at its own time on its recorder's clock.
+bool PerRecordByDefault(SceneParameter::Kind kind) {
+  return kind == SceneParameter::Kind::kBiteTime;
+}
+
+// The time span every record covers (an empty span when they do not overlap: the window check
+// then names the record).
+std::pair<double, double> CommonSpan(const std::vector<Oscillogram>& records) {
+  double first = records.front().time_s.front();
+  double last = records.front().time_s.back();
+  for (const auto& record : records) {
+    first = std::max(first, record.time_s.front());
+    last = std::min(last, record.time_s.back());
+  }
+  return {first, last};
+}
+
 bool ScannedByDefault(SceneParameter::Kind kind) {
   return kind == SceneParameter::Kind::kBacklash || kind == SceneParameter::Kind::kBiteTime;
 }
 
 }  // namespace
 
-void ValidateFitConfig(const FitConfig& config, const Oscillogram& record,
+void ValidateFitConfig(const FitConfig& config, const std::vector<Oscillogram>& records,
                        const std::string& where) {
+  if (records.empty()) throw InputError(where + ": no record to fit");
   if (config.free.empty()) throw InputError(where + ": no free parameter to fit");
   if (config.channels.empty()) throw InputError(where + ": no channel to fit");
   for (size_t i = 0; i < config.free.size(); ++i) {
@@ -61,9 +79,11 @@ void ValidateFitConfig(const FitConfig& config, const Oscillogram& record,
   }
   for (size_t i = 0; i < config.channels.size(); ++i) {
     const auto& c = config.channels[i];
-    if (c.record_channel < 0) {
-      throw InputError(where + ": channel '" + c.column + "' is missing from the record " +
-                       record.source);
+    for (const auto& record : records) {
+      if (record.ChannelIndex(c.column) < 0) {
+        throw InputError(where + ": channel '" + c.column + "' is missing from the record " +
+                         record.source);
+      }
     }
     if (c.link_index < 0) throw InputError(where + ": channel '" + c.column + "': no such link");
     if (c.weight && !(*c.weight > 0.0 && std::isfinite(*c.weight))) {
@@ -75,19 +95,22 @@ void ValidateFitConfig(const FitConfig& config, const Oscillogram& record,
       }
     }
   }
-  const double first = record.time_s.front();
-  const double last = record.time_s.back();
-  if (!(config.window_start_s < config.window_end_s) || config.window_start_s < first ||
-      config.window_end_s > last) {
-    throw InputError(where + ": window [" + FormatNumber(config.window_start_s) + ", " +
-                     FormatNumber(config.window_end_s) + "] s must be an interval inside the " +
-                     "record's time span [" + FormatNumber(first) + ", " + FormatNumber(last) +
-                     "] s of " + record.source);
-  }
-  const auto [begin, end] = record.WindowRange(config.window_start_s, config.window_end_s);
-  if (end - begin < kMinRecordSamples) {
-    throw InputError(where + ": window holds " + std::to_string(end - begin) +
-                     " samples; a fit needs at least " + std::to_string(kMinRecordSamples));
+  for (const auto& record : records) {
+    const double first = record.time_s.front();
+    const double last = record.time_s.back();
+    if (!(config.window_start_s < config.window_end_s) || config.window_start_s < first ||
+        config.window_end_s > last) {
+      throw InputError(where + ": window [" + FormatNumber(config.window_start_s) + ", " +
+                       FormatNumber(config.window_end_s) + "] s must be an interval inside the " +
+                       "record's time span [" + FormatNumber(first) + ", " + FormatNumber(last) +
+                       "] s of " + record.source);
+    }
+    const auto [begin, end] = record.WindowRange(config.window_start_s, config.window_end_s);
+    if (end - begin < kMinRecordSamples) {
+      throw InputError(where + ": window holds " + std::to_string(end - begin) + " samples of " +
+                       record.source + "; a fit needs at least " +
+                       std::to_string(kMinRecordSamples));
+    }
   }
   if (config.scan_points < 0) throw InputError(where + ": scan must be >= 0");
   if (config.starts < 1) throw InputError(where + ": starts must be >= 1");
@@ -95,12 +118,19 @@ void ValidateFitConfig(const FitConfig& config, const Oscillogram& record,
 
 FitConfig LoadFitConfig(const std::string& path, const Oscillogram& record,
                         driveline::Scene* scene) {
+  return LoadFitConfig(path, std::vector<Oscillogram>{record}, scene);
+}
+
+FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>& records,
+                        driveline::Scene* scene) {
+  if (records.empty()) throw InputError(path + ": no record to fit");
   const toml::table root = LoadTomlFile(path);
   const TomlSection top(root, path, "");
   top.RequireOnlyKeys({"fit", "set", "free", "channel"});
   FitConfig config;
-  config.window_start_s = record.time_s.front();
-  config.window_end_s = record.time_s.back();
+  const auto [span_first, span_last] = CommonSpan(records);
+  config.window_start_s = span_first;
+  config.window_end_s = span_last;
   if (const auto fit = top.OptionalTable("fit")) {
     fit->RequireOnlyKeys({"window", "scan", "starts", "seed"});
     if (fit->Has("window")) {
@@ -108,11 +138,13 @@ FitConfig LoadFitConfig(const std::string& path, const Oscillogram& record,
       if (window.size() != 2) fit->Fail("window", "must be [start, end] in s");
       config.window_start_s = window[0];
       config.window_end_s = window[1];
-      if (!(window[0] < window[1]) || window[0] < record.time_s.front() ||
-          window[1] > record.time_s.back()) {
-        fit->Fail("window", "must be an interval inside the record's time span [" +
-                                FormatNumber(record.time_s.front()) + ", " +
-                                FormatNumber(record.time_s.back()) + "] s of " + record.source);
+      for (const auto& record : records) {
+        if (!(window[0] < window[1]) || window[0] < record.time_s.front() ||
+            window[1] > record.time_s.back()) {
+          fit->Fail("window", "must be an interval inside the record's time span [" +
+                                  FormatNumber(record.time_s.front()) + ", " +
+                                  FormatNumber(record.time_s.back()) + "] s of " + record.source);
+        }
       }
     }
     config.scan_points = static_cast<int>(fit->NonNegative("scan", fit->Number("scan", 32)));
@@ -138,7 +170,7 @@ FitConfig LoadFitConfig(const std::string& path, const Oscillogram& record,
   int index = 0;
   for (const auto& section : top.TableArray("free")) {
     ++index;
-    section.RequireOnlyKeys({"name", "start", "lower", "upper", "scan"});
+    section.RequireOnlyKeys({"name", "start", "lower", "upper", "scan", "per_record"});
     FreeParameter p;
     p.parameter = driveline::ParseSceneParameter(*scene, section.RequiredString("name"),
                                                  section.KeyContext("name"));
@@ -146,6 +178,7 @@ FitConfig LoadFitConfig(const std::string& path, const Oscillogram& record,
     p.lower = section.RequiredNumber("lower");
     p.upper = section.RequiredNumber("upper");
     p.scan = section.Bool("scan", ScannedByDefault(p.parameter.kind));
+    p.per_record = section.Bool("per_record", PerRecordByDefault(p.parameter.kind));
     CheckFreeParameter(p, path + ": [[free]] #" + std::to_string(index));
     config.free.push_back(p);
   }
@@ -155,9 +188,10 @@ FitConfig LoadFitConfig(const std::string& path, const Oscillogram& record,
     section.RequireOnlyKeys({"column", "link", "weight", "gain", "offset", "lowpass"});
     ChannelSpec c;
     c.column = section.RequiredString("column");
-    c.record_channel = record.ChannelIndex(c.column);
-    if (c.record_channel < 0) {
-      section.Fail("column", "no column '" + c.column + "' in the record " + record.source);
+    for (const auto& record : records) {
+      if (record.ChannelIndex(c.column) < 0) {
+        section.Fail("column", "no column '" + c.column + "' in the record " + record.source);
+      }
     }
     c.link = section.String("link", c.column);
     c.link_index = scene->LinkIndex(c.link);
@@ -168,20 +202,24 @@ FitConfig LoadFitConfig(const std::string& path, const Oscillogram& record,
     c.lowpass_Hz = section.NonNegative("lowpass", section.Number("lowpass", 0.0));
     config.channels.push_back(c);
   }
-  ValidateFitConfig(config, record, path);
+  ValidateFitConfig(config, records, path);
   return config;
 }
 
 FitConfig DefaultFitConfig(const driveline::Scene& scene, const Oscillogram& record) {
+  return DefaultFitConfig(scene, std::vector<Oscillogram>{record});
+}
+
+FitConfig DefaultFitConfig(const driveline::Scene& scene, const std::vector<Oscillogram>& records) {
+  if (records.empty()) throw InputError("default fit of " + scene.file + ": no record to fit");
+  const Oscillogram& record = records.front();
   FitConfig config;
-  config.window_start_s = record.time_s.front();
-  config.window_end_s = record.time_s.back();
+  std::tie(config.window_start_s, config.window_end_s) = CommonSpan(records);
   for (size_t j = 0; j < record.channels.size(); ++j) {
     const int link = scene.LinkIndex(record.channels[j]);
     if (link < 0) continue;
     ChannelSpec c;
     c.column = c.link = record.channels[j];
-    c.record_channel = static_cast<int>(j);
     c.link_index = link;
     config.channels.push_back(c);
   }
@@ -216,9 +254,10 @@ FitConfig DefaultFitConfig(const driveline::Scene& scene, const Oscillogram& rec
     p.lower = std::max(0.0, p.start - kDefaultBiteHalfRange_s);
     p.upper = p.start + kDefaultBiteHalfRange_s;
     p.scan = true;
+    p.per_record = true;
     config.free.push_back(p);
   }
-  ValidateFitConfig(config, record, where);
+  ValidateFitConfig(config, records, where);
   return config;
 }
 

@@ -15,6 +15,8 @@
 //   lower = 0.002
 //   upper = 0.04
 //   scan = true            # part of the coarse scan (default: true for backlash and bite_time)
+//   per_record = false     # with several records (--data more than once): one value per record
+//                          # (default: true for bite_time, false otherwise)
 //   [[channel]]
 //   column = "upper_torque"  # record column
 //   link = "upper_spindle"   # default: the column name
@@ -45,11 +47,11 @@ struct FreeParameter {
   double lower = 0.0;
   double upper = 0.0;
   bool scan = false;
+  bool per_record = false;  // one value per record when several are fitted together
 };
 
 struct ChannelSpec {
   std::string column;
-  int record_channel = -1;  // index in Oscillogram::channels
   std::string link;
   int link_index = -1;      // scene link
   std::optional<double> weight;  // none: 1/noise estimated from the residual
@@ -69,17 +71,23 @@ struct FitConfig {
 };
 
 // Reads the config, applies its [set] values to `scene` and checks everything against the scene
-// and the record. Throws InputError naming file and key: unknown keys or parameter names, lower >
-// upper, a start outside its bounds, bounds outside the parameter's physical range, a window
-// outside the record or with fewer than kMinRecordSamples samples, a channel column missing from
-// the record, an unknown link, a repeated parameter or channel.
+// and every record. Throws InputError naming file and key: unknown keys or parameter names, lower
+// > upper, a start outside its bounds, bounds outside the parameter's physical range, a window
+// outside a record or with fewer than kMinRecordSamples samples, a channel column missing from a
+// record, an unknown link, a repeated parameter or channel. The default window is the time span
+// every record covers.
+FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>& records,
+                        driveline::Scene* scene);
 FitConfig LoadFitConfig(const std::string& path, const Oscillogram& record,
                         driveline::Scene* scene);
 
-// The defaults above. Throws InputError when no record column is named like a scene link.
+// The defaults above: channels are the columns of the first record named like links. Throws
+// InputError when there is none.
+FitConfig DefaultFitConfig(const driveline::Scene& scene, const std::vector<Oscillogram>& records);
 FitConfig DefaultFitConfig(const driveline::Scene& scene, const Oscillogram& record);
 
 // Checks the rules above on a config built in code; `where` prefixes messages.
-void ValidateFitConfig(const FitConfig& config, const Oscillogram& record, const std::string& where);
+void ValidateFitConfig(const FitConfig& config, const std::vector<Oscillogram>& records,
+                       const std::string& where);
 
 }  // namespace millkit::identify

@@ -15,14 +15,21 @@ nlohmann::json Number(double value) {
   return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
 }
 
+bool SeveralRecords(const FitResult& result) {
+  for (const auto& c : result.channels) {
+    if (c.record != result.channels.front().record) return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 std::string FitJson(const FitResult& result, const std::string& scene_file,
-                    const std::string& record_file) {
+                    const std::vector<std::string>& record_files) {
   using nlohmann::json;
   json doc;
   doc["scene"] = scene_file;
-  doc["record"] = record_file;
+  doc["records"] = record_files;
   const auto& s = result.summary;
   doc["success"] = s.success;
   if (!s.success) doc["message"] = s.message;
@@ -33,6 +40,7 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
                  {"standard_error", Number(p.identifiable ? p.standard_error : NAN)},
                  {"start", p.start}, {"lower", p.lower},       {"upper", p.upper},
                  {"at_bound", p.at_bound}, {"identifiable", p.identifiable}};
+    if (!p.record.empty()) item["record"] = p.record;
     if (!p.identifiable) {
       item["why_not"] = p.why_not;
       not_identifiable.push_back({{"name", p.name}, {"why", p.why_not}});
@@ -45,6 +53,7 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
   for (const auto& c : result.channels) {
     channels.push_back({{"column", c.column},
                         {"link", c.link},
+                        {"record", c.record},
                         {"gain", Number(c.gain)},
                         {"gain_standard_error", Number(c.gain_se)},
                         {"offset_Nm", Number(c.offset)},
@@ -90,45 +99,58 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
 }
 
 std::string FitTraceCsv(const FitResult& result) {
-  std::string text = "time";
+  // Channels of one record share its window times; records follow one another, each row naming
+  // its record when there are several.
+  const bool several = SeveralRecords(result);
+  std::vector<std::vector<const ChannelEstimate*>> by_record;
   for (const auto& c : result.channels) {
-    text += "," + c.column + ".measured," + c.column + ".fitted," + c.column + ".residual";
+    if (by_record.empty() || by_record.back().front()->record != c.record) by_record.emplace_back();
+    by_record.back().push_back(&c);
+  }
+  std::string text = several ? "record,time" : "time";
+  for (const auto* c : by_record.front()) {
+    text += "," + c->column + ".measured," + c->column + ".fitted," + c->column + ".residual";
   }
   text += '\n';
   const auto append = [&text](double value) { AppendNumber(value, &text); };
-  for (size_t k = 0; k < result.window_time_s.size(); ++k) {
-    append(result.window_time_s[k]);
-    for (const auto& c : result.channels) {
-      text += ',';
-      append(c.measured[k]);
-      text += ',';
-      append(c.fitted[k]);
-      text += ',';
-      append(c.fitted[k] - c.measured[k]);
+  for (const auto& channels : by_record) {
+    const auto& time = channels.front()->time_s;
+    for (size_t k = 0; k < time.size(); ++k) {
+      if (several) text += channels.front()->record_label + ",";
+      append(time[k]);
+      for (const auto* c : channels) {
+        text += ',';
+        append(c->measured[k]);
+        text += ',';
+        append(c->fitted[k]);
+        text += ',';
+        append(c->fitted[k] - c->measured[k]);
+      }
+      text += '\n';
     }
-    text += '\n';
   }
   return text;
 }
 
 std::string FitPlotSvg(const FitResult& result, const std::string& title) {
+  const bool several = SeveralRecords(result);
   std::vector<PlotPanel> panels;
   for (const auto& c : result.channels) {
+    const std::string name = several ? c.record_label + ": " + c.column : c.column;
     PlotPanel torque;
-    torque.title = c.column + " (link " + c.link + ")";
+    torque.title = name + " (link " + c.link + ")";
     torque.x_title = "time, s";
     torque.y_title = "torque, N*m";
-    torque.series.push_back({"measured", result.window_time_s, c.measured,
-                             PlotSeries::Style::kMarkers});
-    torque.series.push_back({"fitted", result.window_time_s, c.fitted, PlotSeries::Style::kLine});
+    torque.series.push_back({"measured", c.time_s, c.measured, PlotSeries::Style::kMarkers});
+    torque.series.push_back({"fitted", c.time_s, c.fitted, PlotSeries::Style::kLine});
     PlotPanel residual;
-    residual.title = c.column + ": residual (fitted - measured), rms " +
+    residual.title = name + ": residual (fitted - measured), rms " +
                      std::to_string(c.rms_residual) + " N*m";
     residual.x_title = "time, s";
     residual.y_title = "residual, N*m";
     std::vector<double> r(c.fitted.size());
     for (size_t k = 0; k < r.size(); ++k) r[k] = c.fitted[k] - c.measured[k];
-    residual.series.push_back({"", result.window_time_s, r, PlotSeries::Style::kLine});
+    residual.series.push_back({"", c.time_s, r, PlotSeries::Style::kLine});
     panels.push_back(std::move(torque));
     panels.push_back(std::move(residual));
   }

@@ -3,23 +3,26 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "identify/fit.h"
 
 namespace millkit::identify {
 
-// JSON document: parameters (value, standard_error, bounds, start, at_bound, identifiable,
-// why_not), channels (gain, offset with standard errors, weight, rms_residual), correlation
+// JSON document: scene, records (files), parameters (value, standard_error, bounds, start,
+// at_bound, identifiable, why_not; record for a per-record copy), channels (record, gain,
+// offset with standard errors, weight, rms_residual), correlation
 // (names, matrix), not_identifiable (names), multistart (scan points, starts, minima), summary
 // (ceres brief report, termination, iterations, simulations, wall time, cost, noise scale).
 // A standard error that is not defined (covariance not computable) is null.
 std::string FitJson(const FitResult& result, const std::string& scene_file,
-                    const std::string& record_file);
+                    const std::vector<std::string>& record_files);
 
-// CSV: time, then per channel <column>.measured, <column>.fitted, <column>.residual (N·m).
+// CSV: time, then per channel <column>.measured, <column>.fitted, <column>.residual (N·m). With
+// several records a first column `record` (RecordLabels) and the records' rows one after another.
 std::string FitTraceCsv(const FitResult& result);
 
-// Two panels per channel: measured and fitted torque; residual.
+// Two panels per channel (of each record): measured and fitted torque; residual.
 std::string FitPlotSvg(const FitResult& result, const std::string& title);
 
 }  // namespace millkit::identify

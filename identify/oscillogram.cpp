@@ -56,6 +56,20 @@ Oscillogram ParseOscillogram(const std::string& text, const std::string& source)
   return FromTable(ParseCsv(text, source));
 }
 
+std::vector<std::string> RecordLabels(const std::vector<Oscillogram>& records) {
+  std::vector<std::string> labels;
+  for (const auto& record : records) {
+    labels.push_back(std::filesystem::path(record.source).stem().string());
+  }
+  std::vector<std::string> unique = labels;
+  for (size_t i = 0; i < labels.size(); ++i) {
+    if (std::count(labels.begin(), labels.end(), labels[i]) > 1) {
+      unique[i] += "#" + std::to_string(i + 1);
+    }
+  }
+  return unique;
+}
+
 std::string FormatOscillogram(const Oscillogram& record) {
   std::string text = "time";
   for (const auto& name : record.channels) text += "," + name;

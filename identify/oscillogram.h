@@ -29,6 +29,10 @@ inline constexpr int kMinRecordSamples = 16;
 Oscillogram LoadOscillogram(const std::filesystem::path& path);
 Oscillogram ParseOscillogram(const std::string& text, const std::string& source);
 
+// Short names of records fitted together, for parameter and channel names: each file's stem,
+// with #k (1-based position) appended where two stems are equal.
+std::vector<std::string> RecordLabels(const std::vector<Oscillogram>& records);
+
 // CSV text of a record (shortest round-trip numbers); used by the record generator.
 std::string FormatOscillogram(const Oscillogram& record);
 

@@ -1,11 +1,12 @@
-// millkit identify SCENE.toml --data record.csv [--config fit.toml] --out fit.json
-//                  [--plot fit.svg] [--trace fit.csv]
+// millkit identify SCENE.toml --data record.csv [--data record2.csv ...] [--config fit.toml]
+//                  --out fit.json [--plot fit.svg] [--trace fit.csv]
 // millkit synthesize SCENE.toml --spec record.toml --out record.csv
 #include <iomanip>
 #include <iostream>
 #include <memory>
 #include <optional>
 #include <sstream>
+#include <vector>
 
 #include <glog/logging.h>
 
@@ -24,7 +25,7 @@ namespace {
 
 struct IdentifyArgs {
   std::string scene;
-  std::string data;
+  std::vector<std::string> data;
   std::string config;
   std::string out;
   std::string plot;
@@ -48,8 +49,10 @@ std::string ParameterTable(const identify::FitResult& result) {
     if (!p.identifiable) out << "  NOT IDENTIFIABLE: " << p.why_not;
     out << "\n";
   }
+  const bool several = result.channels.front().record != result.channels.back().record;
   for (const auto& c : result.channels) {
-    out << "channel " << c.column << " -> " << c.link << ": gain " << std::setprecision(6)
+    out << "channel " << c.column << (several ? "@" + c.record_label : "") << " -> " << c.link
+        << ": gain " << std::setprecision(6)
         << c.gain << " +- " << std::setprecision(2) << c.gain_se << ", offset "
         << std::setprecision(6) << c.offset << " +- " << std::setprecision(2) << c.offset_se
         << " N*m, rms residual " << std::setprecision(4) << c.rms_residual << " N*m\n";
@@ -70,26 +73,31 @@ void RunIdentify(const IdentifyArgs& args) {
   if (!args.trace.empty()) trace_file.emplace(args.trace);
 
   driveline::Scene scene = driveline::LoadScene(args.scene);
-  const identify::Oscillogram record = identify::LoadOscillogram(args.data);
+  std::vector<identify::Oscillogram> records;
+  std::string record_list;
+  for (const auto& path : args.data) {
+    records.push_back(identify::LoadOscillogram(path));
+    record_list += (record_list.empty() ? "" : ", ") + path;
+  }
   const identify::FitConfig config = args.config.empty()
-                                         ? identify::DefaultFitConfig(scene, record)
-                                         : identify::LoadFitConfig(args.config, record, &scene);
-  const auto result = identify::Fit(scene, record, config, identify::FitOptions{});
+                                         ? identify::DefaultFitConfig(scene, records)
+                                         : identify::LoadFitConfig(args.config, records, &scene);
+  const auto result = identify::Fit(scene, records, config, identify::FitOptions{});
   std::cerr << result.summary.BriefReport() << "\n";
   if (!result.summary.success) {
-    throw SolverFailure(args.data + ": " + result.summary.message);
+    throw SolverFailure(record_list + ": " + result.summary.message);
   }
   json_file.stream() << identify::FitJson(result, args.scene, args.data);
   if (plot_file) {
     plot_file->stream() << identify::FitPlotSvg(result, "millkit identify: " + scene.name +
-                                                            " vs " + args.data);
+                                                            " vs " + record_list);
   }
   if (trace_file) trace_file->stream() << identify::FitTraceCsv(result);
   json_file.Commit();
   if (plot_file) plot_file->Commit();
   if (trace_file) trace_file->Commit();
-  std::cout << "scene: " << scene.name << " (" << args.scene << "), record: " << args.data
-            << "\n"
+  std::cout << "scene: " << scene.name << " (" << args.scene << "), "
+            << (records.size() > 1 ? "records: " : "record: ") << record_list << "\n"
             << ParameterTable(result);
 }
 
@@ -116,7 +124,11 @@ void AddIdentifyCommand(CLI::App& app) {
       "Fit damping, backlash and other scene parameters to a measured torque oscillogram "
       "(Ceres); write values, standard errors, correlations and identifiability flags as JSON");
   command->add_option("scene", args->scene, "Scene TOML file")->required();
-  command->add_option("--data", args->data, "Record CSV: time, then channel columns")->required();
+  command->add_option("--data", args->data,
+                      "Record CSV: time, then channel columns. Give it once per record to fit "
+                      "several bites together (shared scene parameters; bite time, gain and "
+                      "offset per record)")
+      ->required();
   command->add_option("--config", args->config,
                       "Fit TOML: [fit], [set], [[free]], [[channel]] (default: damping and "
                       "backlash of every link, bite_time; channels named like links)");

@@ -5,6 +5,7 @@
 
 #include <map>
 #include <string>
+#include <vector>
 
 #include "driveline/scene.h"
 #include "driveline/scene_parameter.h"
@@ -63,14 +64,18 @@ inline Oscillogram Mill5Record(double noise_fraction, int bits, double lowpass_H
 
 // The bundled fit config (8 link parameters + bite time; gain and offset per channel), with the
 // recorder filter as given, no scan and one start unless changed by the caller.
-inline FitConfig Mill5Config(const Oscillogram& record, driveline::Scene* scene,
+inline FitConfig Mill5Config(const std::vector<Oscillogram>& records, driveline::Scene* scene,
                              double lowpass_Hz = 0.0) {
   FitConfig config = LoadFitConfig(
-      millkit::testing::SourcePath("datasets/records/mill5_two_spindles.fit.toml"), record, scene);
+      millkit::testing::SourcePath("datasets/records/mill5_two_spindles.fit.toml"), records, scene);
   for (auto& channel : config.channels) channel.lowpass_Hz = lowpass_Hz;
   config.scan_points = 0;
   config.starts = 1;
   return config;
+}
+inline FitConfig Mill5Config(const Oscillogram& record, driveline::Scene* scene,
+                             double lowpass_Hz = 0.0) {
+  return Mill5Config(std::vector<Oscillogram>{record}, scene, lowpass_Hz);
 }
 
 }  // namespace millkit::identify::testing

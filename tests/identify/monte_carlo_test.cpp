@@ -22,10 +22,8 @@ TEST_CASE("Over 20 noisy records the truth lies within 3 standard errors and the
           "the spread") {
   // 1 % noise, 12-bit ADC, gain and offset errors; no filter (a known filter is modelled, see
   // fit_recovery_test). Starts: the scene's nominal values (10–25 % off the truth). Window: the
-  // bundled config's [0, 0.3] s. Over [0, 0.4] s the spread of the spindle dampings and the
-  // upper spindle's stiffness reaches 3–6× the local standard errors in 4 of 10 records, all at
-  // one and the same global minimum (checked from the truth as start): the misfit is not
-  // quadratic there. Why is not pinned down yet (README, "not done").
+  // bundled config's [0, 0.3] s (over [0, 0.4] s the misfit has a second minimum that the
+  // robust start reaches in about 1 record in 12: README, identification).
   std::vector<std::vector<double>> errors;  // [parameter][seed]
   std::vector<std::vector<double>> standard_errors;
   std::vector<std::string> names;
