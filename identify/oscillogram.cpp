@@ -64,7 +64,8 @@ std::vector<std::string> RecordLabels(const std::vector<Oscillogram>& records) {
   std::vector<std::string> unique = labels;
   for (size_t i = 0; i < labels.size(); ++i) {
     if (std::count(labels.begin(), labels.end(), labels[i]) > 1) {
-      unique[i] += "#" + std::to_string(i + 1);
+      unique[i].push_back('#');
+      unique[i].append(std::to_string(i + 1));
     }
   }
   return unique;

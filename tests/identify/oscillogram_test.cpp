@@ -65,3 +65,11 @@ TEST_CASE("A record survives a round trip through its CSV text exactly") {
   CHECK(again.time_s == record.time_s);
   CHECK(again.values == record.values);
 }
+
+TEST_CASE("Records fitted together are named by file stem, numbered where two stems agree") {
+  std::vector<Oscillogram> records(3);
+  records[0].source = "shift1/bite.csv";
+  records[1].source = "shift2/bite.csv";
+  records[2].source = "/data/pass3.csv";
+  CHECK(RecordLabels(records) == std::vector<std::string>{"bite#1", "bite#2", "pass3"});
+}
