@@ -45,12 +45,13 @@ inline driveline::Scene Mill5TruthScene(const std::map<std::string, double>& ext
   return scene;
 }
 
-// A two-channel record (upper and lower spindle torque) at 2 kHz over 0.4 s.
+// A two-channel record (upper and lower spindle torque) over 0.4 s, at 2 kHz unless given.
 inline Oscillogram Mill5Record(double noise_fraction, int bits, double lowpass_Hz,
                                unsigned long seed,
-                               const std::map<std::string, double>& extra = {}) {
+                               const std::map<std::string, double>& extra = {},
+                               double sample_rate_Hz = 2000.0) {
   RecordSpec spec;
-  spec.defects.sample_rate_Hz = 2000.0;
+  spec.defects.sample_rate_Hz = sample_rate_Hz;
   spec.defects.duration_s = 0.4;
   spec.defects.noise_fraction = noise_fraction;
   spec.defects.bits = bits;
