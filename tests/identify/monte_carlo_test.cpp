@@ -23,7 +23,7 @@ TEST_CASE("Over 20 noisy records the truth lies within 3 standard errors and the
   // 1 % noise, 12-bit ADC, gain and offset errors; no filter (a known filter is modelled, see
   // fit_recovery_test). Starts: the scene's nominal values (10–25 % off the truth). Window: the
   // bundled config's [0, 0.3] s (over [0, 0.4] s the misfit has a second minimum that the
-  // robust start reaches in about 1 record in 12: README, identification).
+  // robust start reaches in about 1 record in 10: README, identification).
   std::vector<std::vector<double>> errors;  // [parameter][seed]
   std::vector<std::vector<double>> standard_errors;
   std::vector<std::string> names;
