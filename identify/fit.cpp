@@ -120,11 +120,11 @@ class FitModel {
            const FitConfig& config)
       : scene_(scene), records_(records), config_(config) {
     const int record_count = static_cast<int>(records.size());
-    const auto labels = RecordLabels(records);
+    labels_ = RecordLabels(records);
     for (int i = 0; i < static_cast<int>(config.free.size()); ++i) {
       const auto& name = config.free[i].parameter.name;
       if (config.free[i].per_record && record_count > 1) {
-        for (int r = 0; r < record_count; ++r) slots_.push_back({i, r, name + "@" + labels[r]});
+        for (int r = 0; r < record_count; ++r) slots_.push_back({i, r, name + "@" + labels_[r]});
       } else {
         slots_.push_back({i, -1, name});
       }
@@ -156,13 +156,7 @@ class FitModel {
     int offset = 0;
     for (auto& b : blocks_) {
       const auto& record = records_[b.record];
-      if (divisor == 1.0) {
-        b.end = b.full_end;
-      } else {
-        const double onset = onsets_[b.record];
-        const double end_s = onset + (config_.window_end_s - onset) / divisor;
-        b.end = std::min(b.full_end, record.WindowRange(config_.window_start_s, end_s).second);
-      }
+      b.end = StageEnd(b, divisor);
       b.measured = Eigen::Map<const Eigen::VectorXd>(record.values[b.column].data() + b.begin,
                                                      b.end - b.begin);
       b.offset = offset;
@@ -171,10 +165,9 @@ class FitModel {
     residuals_ = offset;
   }
   // The fewest window samples of any block at this stage.
-  int FewestSamples(double divisor) {
-    SetStage(divisor);
+  int FewestSamples(double divisor) const {
     int fewest = std::numeric_limits<int>::max();
-    for (const auto& b : blocks_) fewest = std::min(fewest, b.end - b.begin);
+    for (const auto& b : blocks_) fewest = std::min(fewest, StageEnd(b, divisor) - b.begin);
     return fewest;
   }
 
@@ -271,11 +264,22 @@ class FitModel {
   // Name of block b's gain or offset: gain.<column>, with @<record> when there are several.
   std::string NuisanceName(int b, bool gain) const {
     std::string name = (gain ? "gain." : "offset.") + channel_spec(b).column;
-    if (records_.size() > 1) name += "@" + RecordLabels(records_)[blocks_[b].record];
+    if (records_.size() > 1) name += "@" + labels_[blocks_[b].record];
     return name;
   }
+  // RecordLabels() of the records.
+  const std::string& label(int r) const { return labels_[r]; }
 
  private:
+  // Block b's window end (sample index) at the stage with this divisor.
+  int StageEnd(const Block& b, double divisor) const {
+    if (divisor == 1.0) return b.full_end;
+    const double onset = onsets_[b.record];
+    const double end_s = onset + (config_.window_end_s - onset) / divisor;
+    return std::min(b.full_end,
+                    records_[b.record].WindowRange(config_.window_start_s, end_s).second);
+  }
+
   // When record r's response starts: the first time any channel leaves its initial level by a
   // fifth of its largest excursion in the window.
   double OnsetTime(int r) const {
@@ -300,6 +304,7 @@ class FitModel {
   const driveline::Scene& scene_;
   const std::vector<Oscillogram>& records_;
   const FitConfig& config_;
+  std::vector<std::string> labels_;
   std::vector<Slot> slots_;
   std::vector<Block> blocks_;
   std::vector<double> onsets_;
@@ -347,7 +352,9 @@ class RecordResidual : public ceres::CostFunction {
       jac.block(block.offset, model_.offset_index(b), n, 1).setConstant(block.weight * block.scale);
     }
     std::vector<double> probe(theta, theta + size);
-    std::vector<Eigen::VectorXd> m1 = m, m2 = m;
+    // A probe of a per-record slot simulates (and fills) only that record's blocks; `write`
+    // reads no others.
+    std::vector<Eigen::VectorXd> m1, m2;
     // Writes column i from the probes' torques: d = (weighted) derivative of block b.
     const auto write = [&](int i, const auto& derivative_of) {
       const int only = model_.slot(i).record;
@@ -732,7 +739,6 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
       }
       record_minimum(std::move(direct));
     }
-    model.SetStage(stages.front());
   }
   model.SetStage(1.0);
   summary.starts = static_cast<int>(starts.size());
@@ -821,7 +827,6 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   for (int j = 0; j < model.size(); ++j) {
     if (std::find(constant.begin(), constant.end(), j) == constant.end()) fitted.push_back(j);
   }
-  const auto labels = RecordLabels(records);
   for (int i = 0; i < model.parameters(); ++i) {
     const auto& free = model.free(i);
     ParameterEstimate e;
@@ -847,7 +852,7 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
     e.column = spec.column;
     e.link = spec.link;
     e.record = record.source;
-    e.record_label = labels[block.record];
+    e.record_label = model.label(block.record);
     e.gain = best.theta[model.gain_index(b)];
     e.gain_se = std::sqrt(covariance(model.gain_index(b), model.gain_index(b)));
     e.offset = best.theta[model.offset_index(b)] * block.scale;

@@ -228,34 +228,27 @@ FitConfig DefaultFitConfig(const driveline::Scene& scene, const std::vector<Osci
                      "; give a --config with [[channel]] tables");
   }
   const std::string where = "default fit of " + scene.file;
+  // scan and per_record follow the rules a [[free]] table gets by default.
+  const auto add = [&](const std::string& name, double start, double lower, double upper) {
+    FreeParameter p;
+    p.parameter = driveline::ParseSceneParameter(scene, name, where);
+    p.start = start;
+    p.lower = lower;
+    p.upper = upper;
+    p.scan = ScannedByDefault(p.parameter.kind);
+    p.per_record = PerRecordByDefault(p.parameter.kind);
+    config.free.push_back(p);
+  };
   for (const auto& link : scene.links) {
-    if (link.damping_Nms_per_rad > 0.0) {
-      FreeParameter p;
-      p.parameter = driveline::ParseSceneParameter(scene, link.name + ".damping", where);
-      p.start = link.damping_Nms_per_rad;
-      p.lower = p.start / 10.0;
-      p.upper = p.start * 10.0;
-      config.free.push_back(p);
-    }
-    if (link.backlash_rad > 0.0) {
-      FreeParameter p;
-      p.parameter = driveline::ParseSceneParameter(scene, link.name + ".backlash", where);
-      p.start = link.backlash_rad;
-      p.lower = p.start / 5.0;
-      p.upper = p.start * 3.0;
-      p.scan = true;
-      config.free.push_back(p);
-    }
+    const double d = link.damping_Nms_per_rad;
+    const double b = link.backlash_rad;
+    if (d > 0.0) add(link.name + ".damping", d, d / 10.0, d * 10.0);
+    if (b > 0.0) add(link.name + ".backlash", b, b / 5.0, b * 3.0);
   }
   if (!scene.torques.empty()) {
-    FreeParameter p;
-    p.parameter = driveline::ParseSceneParameter(scene, "bite_time", where);
-    p.start = p.parameter.Get(scene);
-    p.lower = std::max(0.0, p.start - kDefaultBiteHalfRange_s);
-    p.upper = p.start + kDefaultBiteHalfRange_s;
-    p.scan = true;
-    p.per_record = true;
-    config.free.push_back(p);
+    const double bite = driveline::ParseSceneParameter(scene, "bite_time", where).Get(scene);
+    add("bite_time", bite, std::max(0.0, bite - kDefaultBiteHalfRange_s),
+        bite + kDefaultBiteHalfRange_s);
   }
   ValidateFitConfig(config, records, where);
   return config;

@@ -32,7 +32,7 @@ struct IdentifyArgs {
   std::string trace;
 };
 
-std::string ParameterTable(const identify::FitResult& result) {
+std::string ParameterTable(const identify::FitResult& result, bool several_records) {
   std::ostringstream out;
   out << std::left << std::setw(28) << "parameter" << std::right << std::setw(14) << "value"
       << std::setw(13) << "std. error" << std::setw(13) << "start" << "  unit / note\n";
@@ -49,9 +49,8 @@ std::string ParameterTable(const identify::FitResult& result) {
     if (!p.identifiable) out << "  NOT IDENTIFIABLE: " << p.why_not;
     out << "\n";
   }
-  const bool several = result.channels.front().record != result.channels.back().record;
   for (const auto& c : result.channels) {
-    out << "channel " << c.column << (several ? "@" + c.record_label : "") << " -> " << c.link
+    out << "channel " << c.column << (several_records ? "@" + c.record_label : "") << " -> " << c.link
         << ": gain " << std::setprecision(6)
         << c.gain << " +- " << std::setprecision(2) << c.gain_se << ", offset "
         << std::setprecision(6) << c.offset << " +- " << std::setprecision(2) << c.offset_se
@@ -98,7 +97,7 @@ void RunIdentify(const IdentifyArgs& args) {
   if (trace_file) trace_file->Commit();
   std::cout << "scene: " << scene.name << " (" << args.scene << "), "
             << (records.size() > 1 ? "records: " : "record: ") << record_list << "\n"
-            << ParameterTable(result);
+            << ParameterTable(result, records.size() > 1);
 }
 
 struct SynthesizeArgs {
