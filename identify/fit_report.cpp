@@ -15,9 +15,10 @@ nlohmann::json Number(double value) {
   return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
 }
 
+// Records are told apart by label: the same file given twice is two records.
 bool SeveralRecords(const FitResult& result) {
   for (const auto& c : result.channels) {
-    if (c.record != result.channels.front().record) return true;
+    if (c.record_label != result.channels.front().record_label) return true;
   }
   return false;
 }
@@ -104,7 +105,9 @@ std::string FitTraceCsv(const FitResult& result) {
   const bool several = SeveralRecords(result);
   std::vector<std::vector<const ChannelEstimate*>> by_record;
   for (const auto& c : result.channels) {
-    if (by_record.empty() || by_record.back().front()->record != c.record) by_record.emplace_back();
+    if (by_record.empty() || by_record.back().front()->record_label != c.record_label) {
+      by_record.emplace_back();
+    }
     by_record.back().push_back(&c);
   }
   std::string text = several ? "record,time" : "time";

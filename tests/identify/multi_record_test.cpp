@@ -5,6 +5,7 @@
 
 #include "identify/fit.h"
 #include "identify/fit_fixture.h"
+#include "identify/fit_report.h"
 #include "io/input_error.h"
 #include "support/run_cli.h"
 
@@ -129,4 +130,23 @@ TEST_CASE("identify takes --data more than once") {
   const std::string trace = ReadText(dir / "fit.csv");
   CHECK(trace.rfind("record,time,upper_spindle.measured", 0) == 0);
   CHECK_THAT(trace, Contains("\nbite_b,"));
+}
+
+TEST_CASE("The same file given twice is two records in the trace") {
+  FitResult result;
+  for (const char* label : {"bite#1", "bite#2"}) {
+    ChannelEstimate c;
+    c.column = "upper_spindle";
+    c.record = "bite.csv";
+    c.record_label = label;
+    c.time_s = {0.0, 0.001};
+    c.measured = {1.0, 2.0};
+    c.fitted = {1.5, 2.5};
+    result.channels.push_back(c);
+  }
+  const std::string trace = FitTraceCsv(result);
+  CHECK(trace.rfind("record,time,upper_spindle.measured,upper_spindle.fitted,"
+                    "upper_spindle.residual\n", 0) == 0);
+  CHECK_THAT(trace, Contains("\nbite#1,0.001,2,2.5,0.5\n"));
+  CHECK_THAT(trace, Contains("\nbite#2,0,1,1.5,0.5\n"));
 }
