@@ -23,7 +23,15 @@
 // first root is located by safeguarded Newton to a few ulps of time.
 // Everything runs in scaled coordinates y = D⁻¹ z, D = diag(typical magnitudes): D⁻¹ M D has a
 // norm near the fastest mode's frequency, where the raw M mixes units (N·m/rad over kg·m² next
-// to 1) and would need many more Taylor terms.
+// to 1) and would need many more Taylor terms. An input slope is scaled by at most value / h, and
+// D is rebalanced (BalanceScale) where a loop couples states of very different scales.
+// Stiff phase sets (issue 11: a near-step load, a fast drive loop, a heavily damped coupling),
+// where a step's Taylor series would need more than kMaxTaylorPieces pieces, are stepped on a
+// ladder of propagators over h / 2^j built in long double (StiffAdvance): substeps halve until
+// the chord bound with the acceleration m v clears every surface, and double again once the fast
+// transient has decayed; the short substeps that still do not clear get the Taylor search. The
+// cost is O(log ‖m‖ h) per step and per transient, the cache of phase data is bounded in bytes,
+// and a surface that never clears ends the run with a reason (kMaxStiffSubsteps), never a hang.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -33,6 +41,7 @@
 
 #include "driveline/output_recorder.h"
 #include "driveline/simulation.h"
+#include "io/toml_section.h"
 #include "numerics/exp_phi.h"
 #include "numerics/small_matvec.h"
 
@@ -65,9 +74,30 @@ constexpr int kMaxTaylorTerms = 60;
 constexpr long kStepsBeforeCaching = 8;
 // Halvings of one polynomial before a surface that keeps within its bound is called a graze.
 constexpr int kMaxSearchDepth = 60;
+// A step whose Taylor series would need more pieces than this (‖m‖∞ τ, a stiff phase set: a fast
+// drive loop, a heavily damped coupling) is taken in substeps on a ladder of exact propagators
+// over h / 2^j instead (StiffAdvance): its cost grows with log(‖m‖∞ h), not with ‖m‖∞ h.
+// 16, from bench_stiff: at 64 a coupling damped at 1e4 (‖m‖ h ≈ 20) took 0.65 ms, every step
+// expanded because the Taylor bound's growth e^{‖m‖ h} cleared no surface; at 16, 0.07 ms; the
+// bundled bite (‖m‖ h < 1) is unchanged.
+constexpr double kMaxTaylorPieces = 16.0;
+// Stiff substeps short enough for the exact event search on their Taylor series.
+constexpr double kSearchPieces = 4.0;
+// The ladder's finest level, where sup ‖exp(m s)‖∞ <= e^{‖m‖∞ σ} is used as it is.
+constexpr double kGrowthBaseNorm = 0.125;
+// Cached phase data beyond this many bytes is dropped and rebuilt on need: a run that visits very
+// many phase sets keeps a bounded memory.
+constexpr size_t kMaxCacheBytes = size_t{64} << 20;
+// Ulps of rounding per entry of a ladder propagator (built in long double, rounded once).
+constexpr double kLadderUlps = 4.0;
+// Substeps of one stiff step before the run gives up (a clear failure instead of a hang).
+constexpr long kMaxStiffSubsteps = 200'000;
 
 // Typical magnitude of each component of z: states from the model, forcing from the sources.
-Eigen::VectorXd AugmentedScale(const Model& model) {
+// An input slope is scaled by at most value / h: a ramp shorter than the step h (a load written as
+// a near-step) then lasts one short step with a large scaled slope, instead of putting
+// value / rise into m's norm (and into the cost of every step) for the whole run.
+Eigen::VectorXd AugmentedScale(const Model& model, double h) {
   const int nx = model.state_size(), nw = model.forcing_size();
   Eigen::VectorXd scale = Eigen::VectorXd::Ones(model.augmented_size());
   scale.head(nx) = model.StateScale();
@@ -83,9 +113,58 @@ Eigen::VectorXd AugmentedScale(const Model& model) {
       }
     }
     scale[nx + 1 + s] = std::max(value, 1.0);
-    scale[nx + nw + 1 + s] = std::max(slope, 1.0);
+    scale[nx + nw + 1 + s] = std::max(std::min(slope, value / h), 1.0);
   }
   return scale;
+}
+
+// Rebalances the state part of `scale` (Osborne's iteration in powers of 2) on |M| of the phase
+// sets that carry the most coupling: the initial ones, every backlash link in contact or dead with
+// a linear drive. The model's scales follow each link's and the drive's own magnitudes; where a
+// loop couples them at very different scales (a drive with kp/lag far above limit/J) the scaled
+// matrix's norm, and with it the cost of a step and the looseness of every bound, is far above the
+// fastest rate of the motion. The balanced scales are taken only when they cut the norm by more
+// than kBalanceGain, so well-scaled scenes keep their scales, and their roundoff, exactly.
+constexpr double kBalanceGain = 8.0;
+void BalanceScale(const Model& model, Eigen::VectorXd* scale) {
+  const int n = model.augmented_size(), nx = model.state_size();
+  Eigen::MatrixXd magnitude = model.SystemMatrix(model.InitialPhases()).cwiseAbs();
+  const int links = model.backlash_link_count();
+  for (LinkPhase link : {LinkPhase::kPosSpringDamper, LinkPhase::kDead}) {
+    Phases phases(links + (model.has_drive() ? 1 : 0), static_cast<char>(link));
+    if (model.has_drive()) phases.back() = static_cast<char>(DrivePhase::kLinear);
+    magnitude = magnitude.cwiseMax(model.SystemMatrix(phases).cwiseAbs());
+  }
+  auto scaled_norm = [&](const Eigen::VectorXd& d) {
+    double norm = 0.0;
+    for (int i = 0; i < n; ++i) {
+      double row = 0.0;
+      for (int j = 0; j < n; ++j) row += magnitude(i, j) * d[j] / d[i];
+      norm = std::max(norm, row);
+    }
+    return norm;
+  };
+  Eigen::VectorXd balanced = *scale;
+  for (int sweep = 0; sweep < 100; ++sweep) {
+    bool changed = false;
+    for (int i = 0; i < nx; ++i) {
+      double row = 0.0, column = 0.0;
+      for (int j = 0; j < n; ++j) {
+        if (j == i) continue;
+        row += magnitude(i, j) * balanced[j] / balanced[i];
+        column += magnitude(j, i) * balanced[i] / balanced[j];
+      }
+      if (row == 0.0 || column == 0.0) continue;
+      // Scaling component i by f divides its row by f and multiplies its column by f.
+      const double f = std::exp2(std::round(0.5 * std::log2(row / column)));
+      if (f != 1.0 && (row / f + column * f) < 0.95 * (row + column)) {
+        balanced[i] *= f;
+        changed = true;
+      }
+    }
+    if (!changed) break;
+  }
+  if (scaled_norm(balanced) * kBalanceGain < scaled_norm(*scale)) *scale = balanced;
 }
 
 // The step whose propagator is cached per phase set: the scene's sample interval, or for given
@@ -170,6 +249,15 @@ struct PhaseData {
   PaddedMatrix step;    // [Φ; 0; S; 0] over the active part of v (zero rows pad to 4)
   double growth = 1.0;  // e^{‖m‖∞ h}: bounds ‖v‖ over a step by growth · ‖v(t)‖
   double defect = 0.0;  // roundoff of one cached step, relative to the state scale
+  // Stiff phase sets (StiffAdvance), built on first need: per level j = 0 … ladder.size() − 1,
+  // the step [Φ; 0; S; 0] over σ_j = h / 2^j, sup_{s <= σ_j} ‖exp(m s)‖∞ and the roundoff of Φ
+  // and S (‖ΔΦ‖∞ + ‖ΔS‖∞ σ_j, from a ladder along another rounding path).
+  std::vector<PaddedMatrix> ladder;
+  std::vector<double> ladder_growth;
+  std::vector<double> ladder_defect;
+  int level = 0;                 // the substep level last taken
+  std::vector<double> row_norm;  // ‖R_w‖₁ per watched surface
+  size_t bytes = 0;              // approximate memory held
 };
 
 // Taylor series of one step in pieces: on piece p (start z_p, v_p, length dt),
@@ -368,6 +456,24 @@ class ExactIntegrator {
                  const std::vector<double>& tolerance, double resolution_s, int* piece, double* s,
                  int* crossed);
   void Record(OutputRecorder* recorder, int k, const double* y, const double* torque);
+  // Builds the propagator ladder of a stiff phase set.
+  void BuildLadder(PhaseData* data);
+  // Advances (y, v) over τ in a stiff phase set by substeps on the ladder: each substep is
+  // accepted when every watched surface keeps clear of zero by the chord bound
+  // |g''| <= ‖R_w‖₁ sup‖exp(m s)‖∞ ‖m v‖∞ (v at the substep's start), else halved; one short enough
+  // (‖m‖∞ σ <= kSearchPieces) that still does not clear gets the exact search on its Taylor
+  // series. True at an event: *tau_event from the start, *crossed, y1 and v1 at the event (past
+  // the surface). False: y1 and v1 at τ, end = [R; T] y1.
+  bool StiffAdvance(PhaseData* data, double t, double tau, const double* y, const double* v,
+                    const double* g0, double* y1, double* v1, double* end, double* tau_event,
+                    int* crossed);
+  // Whether surface w cannot move: no component that reaches it moves (v = 0 there).
+  bool StaticSurface(PhaseData* data, int w, const double* v);
+  double ActiveMax(const double* y) const {
+    double size = 0.0;
+    for (int i = 0; i < active_; ++i) size = std::max(size, std::abs(y[i]));
+    return size;
+  }
 
   const Model& model_;
   const SimulationOptions& options_;
@@ -378,6 +484,8 @@ class ExactIntegrator {
   const int active_;
   const int active_stride_;
   std::unordered_map<Phases, PhaseData> cache_;
+  Phases phases_;  // the current phases, for StiffAdvance's messages
+  size_t cache_bytes_ = 0;
   double h_ = 0.0;
   Eigen::VectorXd scale_, inverse_scale_;
   SimulationResult result_;
@@ -392,8 +500,12 @@ class ExactIntegrator {
   std::vector<double> vector_scratch_;
   std::vector<std::uint64_t> inputs_scratch_;
   std::vector<int> stack_scratch_;
-  // Work space of BuildStep().
+  // Work space of BuildStep() and StiffAdvance().
   Eigen::MatrixXd build_m_, build_s_, build_phi_, build_step_, build_product_;
+  std::vector<double> stiff_y_, stiff_v_, stiff_g_, stiff_a_, stiff_out_;
+  std::vector<int> stiff_candidates_;
+  std::vector<double> stiff_tolerance_;
+  std::vector<std::uint64_t> moving_;
   // Output map of kept samples: speed of each scene mass, twist of each flexible scene link.
   std::vector<int> speed_index_;
   std::vector<int> twist_index_;  // −1 for rigid links
@@ -402,6 +514,11 @@ class ExactIntegrator {
 MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
   auto it = cache_.find(phases);
   if (it != cache_.end()) return &it->second;
+  // Only the caller's current phase set is held by pointer, and it is being replaced.
+  if (cache_bytes_ > kMaxCacheBytes) {
+    cache_.clear();
+    cache_bytes_ = 0;
+  }
   // Scratch matrices are members: a run meets a few dozen phase sets, each built once.
   PhaseData data;
   const Eigen::MatrixXd system = model_.SystemMatrix(phases);
@@ -463,6 +580,12 @@ MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
       data.bound3[w] = bound3;
     }
   }
+  data.row_norm.resize(count);
+  for (int w = 0; w < count; ++w) data.row_norm[w] = observe.row(w).cwiseAbs().sum();
+  data.bytes = sizeof(double) * (static_cast<size_t>(n_) * n_ * 2 +
+                                 static_cast<size_t>(count + torque.rows()) * n_ * 2) +
+               sizeof(PhaseData);
+  cache_bytes_ += data.bytes;
   return &cache_.emplace(phases, std::move(data)).first->second;
 }
 
@@ -488,6 +611,173 @@ void ExactIntegrator::BuildStep(PhaseData* data) {
   numerics::ExpAndPhi1(m, h_, &s2, &phi2, 1);
   data->defect = data->norm_inf * ((phi - phi2).cwiseAbs().rowwise().sum().maxCoeff() +
                                    (s - s2).cwiseAbs().rowwise().sum().maxCoeff() * h_);
+}
+
+void ExactIntegrator::BuildLadder(PhaseData* data) {
+  const int a = active_, as = active_stride_;
+  Eigen::MatrixXd& m = build_m_;
+  data->m_active.CopyTo(&m);
+  // Levels down to the one the Taylor search takes (‖m‖∞ σ <= kSearchPieces), and further down to
+  // ‖m‖∞ σ <= kGrowthBaseNorm for the growth bound only.
+  const double theta = data->norm_inf * h_;
+  const int search = std::max(0, static_cast<int>(std::ceil(std::log2(theta / kSearchPieces))));
+  const int base =
+      std::max(search, static_cast<int>(std::ceil(std::log2(theta / kGrowthBaseNorm))));
+  std::vector<Eigen::MatrixXd> s, phi;
+  numerics::ExpAndPhi1Ladder(m, h_, base, &s, &phi);
+  // sup_{s <= σ_j} ‖exp(m s)‖∞ <= max(1, ‖S_{j+1}‖∞) · sup_{s <= σ_{j+1}} (any s in (σ_{j+1}, σ_j]
+  // is σ_{j+1} plus a shorter time).
+  std::vector<double> growth(base + 1);
+  growth[base] = std::exp(std::ldexp(theta, -base));
+  for (int j = base - 1; j >= 0; --j) {
+    growth[j] = std::max(1.0, s[j + 1].cwiseAbs().rowwise().sum().maxCoeff()) * growth[j + 1];
+  }
+  data->ladder.resize(search + 1);
+  data->ladder_growth.assign(growth.begin(), growth.begin() + search + 1);
+  data->ladder_defect.assign(search + 1, 0.0);
+  Eigen::MatrixXd& step = build_step_;
+  for (int j = 0; j <= search; ++j) {
+    step.setZero(2 * as, a);
+    step.topRows(a) = phi[j];
+    step.middleRows(as, a) = s[j];
+    data->ladder[j].Assign(step);
+  }
+  if (options_.estimate_error) {
+    // Built in long double, the ladder's own error is that of rounding to double: a few ulps of
+    // each entry, carried into y through Φ and into v through S (one more step of Φ ≈ σ).
+    for (int j = 0; j <= search; ++j) {
+      data->ladder_defect[j] =
+          kLadderUlps * kEps *
+          (phi[j].cwiseAbs().rowwise().sum().maxCoeff() +
+           s[j].cwiseAbs().rowwise().sum().maxCoeff() * std::ldexp(h_, -j));
+    }
+  }
+  // Start where a fresh transient needs it: the Taylor level.
+  data->level = search;
+  const size_t bytes = sizeof(double) * static_cast<size_t>(search + 1) * 2 * as * a;
+  data->bytes += bytes;
+  cache_bytes_ += bytes;
+  ++result_.summary.phase_sets;
+}
+
+bool ExactIntegrator::StaticSurface(PhaseData* data, int w, const double* v) {
+  std::fill(moving_.begin(), moving_.end(), 0);
+  for (int i = 0; i < n_; ++i) {
+    if (v[i] != 0.0) moving_[i / 64] |= std::uint64_t{1} << (i % 64);
+  }
+  if (data->reach.empty()) {
+    Eigen::MatrixXd& m = m_scratch_;
+    data->m_padded.CopyTo(&m);
+    data->rows.CopyTo(&observe_scratch_);
+    Reach(m, observe_scratch_, words_, &inputs_scratch_, &stack_scratch_, &data->reach);
+  }
+  return Disjoint(moving_.data(), data->reach.data() + static_cast<size_t>(w) * words_, words_);
+}
+
+bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const double* y,
+                                   const double* v, const double* g0, double* y1, double* v1,
+                                   double* end, double* tau_event, int* crossed) {
+  if (data->ladder.empty()) BuildLadder(data);
+  SimulationSummary& summary = result_.summary;
+  const int count = static_cast<int>(data->watched.size());
+  const int search = static_cast<int>(data->ladder.size()) - 1;
+  std::vector<double>&ys = stiff_y_, &vs = stiff_v_, &gs = stiff_g_, &acc = stiff_a_,
+  &out = stiff_out_;
+  ys.assign(y, y + stride_);
+  vs.assign(v, v + stride_);
+  gs.assign(g0, g0 + count);
+  acc.assign(stride_, 0.0);
+  out.assign(std::max<int>(2 * active_stride_, data->observe.ld()), 0.0);
+  moving_.resize(words_);
+  auto accept = [&] {
+    std::copy(y1, y1 + stride_, ys.begin());
+    std::copy(v1, v1 + stride_, vs.begin());
+    std::copy(end, end + count, gs.begin());
+  };
+  double done = 0.0;
+  int level = std::clamp(data->level, 0, search);
+  long substeps = 0;
+  while (done < tau) {
+    if (++substeps > kMaxStiffSubsteps) {
+      summary.message = "a stiff phase set (" + model_.DescribePhases(phases_) +
+                        ", |M| h = " + FormatNumber(data->norm_inf * h_) + ") needs more than " +
+                        std::to_string(kMaxStiffSubsteps) +
+                        " substeps in one output step at t = " + FormatNumber(t + done) +
+                        ": a surface stays within roundoff of switching while the motion moves "
+                        "faster than the bounds can clear";
+      return false;
+    }
+    // The coarsest level that fits in what is left; below the finest one, the rest is one
+    // Taylor substep (the ladder's levels sum to any step in binary, and only the finest
+    // remainder needs a propagator of its own).
+    const double remaining = tau - done;
+    while (level < search && std::ldexp(h_, -level) > remaining * (1.0 + 4 * kEps)) ++level;
+    const double sigma_level = std::ldexp(h_, -level);
+    const bool taylor = sigma_level > remaining * (1.0 + 4 * kEps);
+    const bool last = taylor || sigma_level >= remaining * (1.0 - 4 * kEps);
+    const double sigma = taylor ? remaining : sigma_level;
+    if (taylor) {
+      ExpandStep(*data, ys.data(), vs.data(), sigma, y1, v1);
+    } else {
+      data->ladder[level].Apply(vs.data(), out.data());
+      for (int i = 0; i < active_stride_; ++i) {
+        y1[i] = ys[i] + out[i];
+        v1[i] = out[active_stride_ + i];
+      }
+      for (int i = active_stride_; i < stride_; ++i) {
+        y1[i] = ys[i];
+        v1[i] = 0.0;
+      }
+    }
+    if (!std::isfinite(numerics::MaxAbsPadded(v1, active_stride_))) return false;
+    data->observe.Apply(y1, end);
+    // |g''(s)| = |R_w exp(m s) m v| <= ‖R_w‖₁ G ‖m v‖∞ over the substep: the chord's error bound.
+    data->m_active.Apply(vs.data(), acc.data());
+    const double a_norm = numerics::MaxAbsPadded(acc.data(), active_stride_);
+    const double chord = data->ladder_growth[level] * a_norm * sigma * sigma * 0.125;
+    const double size = std::max({1.0, ActiveMax(ys.data()), ActiveMax(y1)});
+    stiff_candidates_.clear();
+    stiff_tolerance_.resize(count);
+    for (int w = 0; w < count; ++w) {
+      stiff_tolerance_[w] = data->tolerance[w] * size;
+      const double lower = std::min(gs[w], end[w]);
+      if (lower - data->row_norm[w] * chord + stiff_tolerance_[w] >= 0.0) continue;
+      if (end[w] >= -stiff_tolerance_[w] && StaticSurface(data, w, vs.data())) continue;
+      stiff_candidates_.push_back(w);
+    }
+    ++summary.steps;
+    if (stiff_candidates_.empty()) {
+      if (!taylor) {
+        summary.error_estimate +=
+            numerics::MaxAbsPadded(vs.data(), active_stride_) * data->ladder_defect[level];
+      }
+      accept();
+      done = last ? tau : done + sigma;
+      if (level > 0 && !last) --level;
+      continue;
+    }
+    if (data->norm_inf * sigma > kSearchPieces) {  // (then level < search) halve and try again
+      ++level;
+      continue;
+    }
+    // Short enough for the exact search on the step's Taylor series.
+    if (!taylor) ExpandStep(*data, ys.data(), vs.data(), sigma, y1, v1);
+    const double resolution_s =
+        kStallUlps * kEps * std::max(std::abs(t + done) + sigma, h_) / series_.dt;
+    int piece = 0;
+    double s = 0.0;
+    if (FindEvent(*data, stiff_candidates_, stiff_tolerance_, resolution_s, &piece, &s, crossed)) {
+      *tau_event = done + (piece + s) * series_.dt;
+      EvaluateSeries(piece, s, y1, v1);
+      data->level = level;
+      return true;
+    }
+    data->observe.Apply(y1, end);
+    accept();
+    done = last ? tau : done + sigma;
+  }
+  data->level = level;
+  return false;
 }
 
 MILLKIT_HOT void ExactIntegrator::ExpandStep(const PhaseData& data, const double* z,
@@ -611,9 +901,9 @@ MILLKIT_HOT void ExactIntegrator::Record(OutputRecorder* recorder, int k, const 
     }
     double* twist = recorder->twist(k);
     for (int l = 0; l < links; ++l) {
-      twist[l] = twist_index_[l] >= 0 ? scale_[twist_index_[l]] * y[twist_index_[l]]
-                                      : torque[l] /
-                                            model_.reduced_scene().links[l].stiffness_Nm_per_rad;
+      twist[l] = twist_index_[l] >= 0
+                     ? scale_[twist_index_[l]] * y[twist_index_[l]]
+                     : torque[l] / model_.reduced_scene().links[l].stiffness_Nm_per_rad;
     }
   }
   recorder->Commit(k, torque);
@@ -629,7 +919,8 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
   const std::vector<double>& times = recorder.times();
   const int samples = recorder.size();
   h_ = CachedStepLength(scene, options_, times);
-  scale_ = AugmentedScale(model_);
+  scale_ = AugmentedScale(model_, h_);
+  BalanceScale(model_, &scale_);
   inverse_scale_ = scale_.cwiseInverse();
   const int links = static_cast<int>(scene.links.size());
   for (size_t i = 0; i < scene.masses.size(); ++i) {
@@ -657,7 +948,8 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
   std::vector<double> y(stride_, 0.0), v(stride_, 0.0), y1(stride_, 0.0), v1(stride_, 0.0);
   std::vector<double> g0(max_ld), dg0(max_ld), end(max_ld), dg1(max_ld), out(max_ld);
   for (int i = 0; i < n_; ++i) y[i] = z0[i] / scale_[i];
-  Eigen::VectorXd unscaled(n_), unscaled_v(n_), unscaled_a(n_);
+  Eigen::VectorXd unscaled(n_);
+  std::vector<Eigen::VectorXd> derivatives;
   std::vector<std::uint64_t> moving(words_);
   double v_norm = 0.0;
   auto refresh = [&] {  // v, g0 and ‖v‖ from y in the current phases
@@ -697,112 +989,144 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
     // themselves (the state lands a few ulps of t off: as exact as t can be stated).
     const bool full_step =
         on_grid && at_grid && std::abs(tau - h_) <= 8 * kEps * std::max(std::abs(t_grid), h_);
-    if (full_step && !data->has_step && ++data->full_steps >= kStepsBeforeCaching) {
-      BuildStep(data);
-    }
     const int count = static_cast<int>(data->watched.size());
-    bool expanded = false;
-    double growth = data->growth;
-    if (full_step && data->has_step) {
-      data->step.Apply(v.data(), out.data());
-      for (int i = 0; i < active_stride_; ++i) {
-        y1[i] = y[i] + out[i];
-        v1[i] = out[active_stride_ + i];
+    // event: a switching event was located within the step; y1, v1 hold the state there.
+    double tau_event = 0.0;
+    int crossed = -1;
+    bool event = false;
+    if (data->norm_inf * tau > kMaxTaylorPieces) {
+      phases_ = phases;
+      event = StiffAdvance(data, t, tau, y.data(), v.data(), g0.data(), y1.data(), v1.data(),
+                           end.data(), &tau_event, &crossed);
+      if (!summary.message.empty()) break;
+      if (!event && !std::isfinite(numerics::MaxAbsPadded(v1.data(), active_stride_))) {
+        summary.message = "state became non-finite at t = " + std::to_string(t);
+        break;
       }
-      for (int i = active_stride_; i < stride_; ++i) y1[i] = y[i];  // (v1 stays zero there)
-      summary.error_estimate += data->defect;
     } else {
-      ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
-      expanded = true;
-      growth = std::exp(std::min(data->norm_inf * tau, 700.0));
-    }
-    ++summary.steps;
-    // Non-finite states show in v first (y1 = y + Φ v).
-    const double v1_norm = numerics::MaxAbsPadded(v1.data(), active_stride_);  // zero beyond
-    if (!std::isfinite(v1_norm)) {
-      summary.message = "state became non-finite at t = " + std::to_string(t);
-      break;
-    }
-    data->observe.Apply(y1.data(), end.data());
-
-    // Which watched surfaces can cross within the step: the bounds first, exact work after. The
-    // surfaces are signed (>= 0 on the watched side). The first pass is branch-free over all of
-    // them with the smallest tolerance (state size 1): the chord between the ends is off g by at
-    // most max|g''| τ²/8. The surfaces it does not clear get their slopes and the tighter tiers.
-    const double l_factor = growth * v_norm * tau * tau * 0.125;
-    const double c_factor = growth * v_norm * tau * tau * tau * tau * (1.0 / 24.0);
-    double least = 0.0;
-    {
-      const double* __restrict a0 = g0.data();
-      const double* __restrict a1 = end.data();
-      const double* __restrict bound2 = data->bound2.data();
-      const double* __restrict tol = data->tolerance.data();
-      double* __restrict out_slack = slack.data();
-      for (int w = 0; w < count; ++w) {
-        const double lower = a0[w] < a1[w] ? a0[w] : a1[w];
-        out_slack[w] = lower - bound2[w] * l_factor + tol[w];
-        least = out_slack[w] < least ? out_slack[w] : least;
+      if (full_step && !data->has_step && ++data->full_steps >= kStepsBeforeCaching) {
+        BuildStep(data);
       }
-    }
-    const bool any = least < 0.0;
-    candidates.clear();
-    if (any) {
-      data->rows.Apply(v.data(), dg0.data());
-      data->rows.Apply(v1.data(), dg1.data());
-      const double size = std::max({1.0, numerics::MaxAbsPadded(y.data(), stride_),
-                                    numerics::MaxAbsPadded(y1.data(), stride_)});
-      bool moving_known = false;
-      tolerance.resize(count);
-      for (int w = 0; w < count; ++w) {
-        tolerance[w] = data->tolerance[w] * size;
-        if (slack[w] >= 0.0) continue;
-        if (end[w] < -tolerance[w]) {
-          candidates.push_back(w);
-          continue;
+      bool expanded = false;
+      double growth = data->growth;
+      if (full_step && data->has_step) {
+        data->step.Apply(v.data(), out.data());
+        for (int i = 0; i < active_stride_; ++i) {
+          y1[i] = y[i] + out[i];
+          v1[i] = out[active_stride_ + i];
         }
-        const double a0 = g0[w], a1 = end[w], b0 = dg0[w] * tau, b1 = dg1[w] * tau;
-        const double c = data->bound3[w] * c_factor;
-        if (QuickMinimum(a0, b0, a1, b1, c) >= -tolerance[w]) continue;
-        if (!moving_known) {
-          std::fill(moving.begin(), moving.end(), 0);
-          for (int i = 0; i < n_; ++i) {
-            if (v[i] != 0.0) moving[i / 64] |= std::uint64_t{1} << (i % 64);
+        for (int i = active_stride_; i < stride_; ++i) y1[i] = y[i];  // (v1 stays zero there)
+        summary.error_estimate += data->defect;
+      } else {
+        ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
+        expanded = true;
+        growth = std::exp(std::min(data->norm_inf * tau, 700.0));
+      }
+      ++summary.steps;
+      // Non-finite states show in v first (y1 = y + Φ v).
+      const double v1_norm = numerics::MaxAbsPadded(v1.data(), active_stride_);  // zero beyond
+      if (!std::isfinite(v1_norm)) {
+        summary.message = "state became non-finite at t = " + std::to_string(t);
+        break;
+      }
+      data->observe.Apply(y1.data(), end.data());
+
+      // Which watched surfaces can cross within the step: the bounds first, exact work after. The
+      // surfaces are signed (>= 0 on the watched side). The first pass is branch-free over all of
+      // them with the smallest tolerance (state size 1): the chord between the ends is off g by at
+      // most max|g''| τ²/8. The surfaces it does not clear get their slopes and the tighter tiers.
+      const double l_factor = growth * v_norm * tau * tau * 0.125;
+      const double c_factor = growth * v_norm * tau * tau * tau * tau * (1.0 / 24.0);
+      double least = 0.0;
+      {
+        const double* __restrict a0 = g0.data();
+        const double* __restrict a1 = end.data();
+        const double* __restrict bound2 = data->bound2.data();
+        const double* __restrict tol = data->tolerance.data();
+        double* __restrict out_slack = slack.data();
+        for (int w = 0; w < count; ++w) {
+          const double lower = a0[w] < a1[w] ? a0[w] : a1[w];
+          out_slack[w] = lower - bound2[w] * l_factor + tol[w];
+          least = out_slack[w] < least ? out_slack[w] : least;
+        }
+      }
+      const bool any = least < 0.0;
+      candidates.clear();
+      if (any) {
+        data->rows.Apply(v.data(), dg0.data());
+        data->rows.Apply(v1.data(), dg1.data());
+        const double size = std::max({1.0, ActiveMax(y.data()), ActiveMax(y1.data())});
+        bool moving_known = false;
+        tolerance.resize(count);
+        for (int w = 0; w < count; ++w) {
+          tolerance[w] = data->tolerance[w] * size;
+          if (slack[w] >= 0.0) continue;
+          if (end[w] < -tolerance[w]) {
+            candidates.push_back(w);
+            continue;
           }
-          moving_known = true;
+          const double a0 = g0[w], a1 = end[w], b0 = dg0[w] * tau, b1 = dg1[w] * tau;
+          const double c = data->bound3[w] * c_factor;
+          if (QuickMinimum(a0, b0, a1, b1, c) >= -tolerance[w]) continue;
+          if (!moving_known) {
+            std::fill(moving.begin(), moving.end(), 0);
+            for (int i = 0; i < n_; ++i) {
+              if (v[i] != 0.0) moving[i / 64] |= std::uint64_t{1} << (i % 64);
+            }
+            moving_known = true;
+          }
+          // g is constant, and a1 >= −tolerance.
+          if (data->reach.empty()) {
+            Eigen::MatrixXd& m = m_scratch_;
+            data->m_padded.CopyTo(&m);
+            data->rows.CopyTo(&observe_scratch_);
+            Reach(m, observe_scratch_, words_, &inputs_scratch_, &stack_scratch_, &data->reach);
+          }
+          if (Disjoint(moving.data(), data->reach.data() + static_cast<size_t>(w) * words_,
+                       words_)) {
+            continue;
+          }
+          if (EnvelopeMinimum(a0, b0, a1, b1, c) < -tolerance[w]) candidates.push_back(w);
         }
-        // g is constant, and a1 >= −tolerance.
-        if (data->reach.empty()) {
-          Eigen::MatrixXd& m = m_scratch_;
-          data->m_padded.CopyTo(&m);
-          data->rows.CopyTo(&observe_scratch_);
-          Reach(m, observe_scratch_, words_, &inputs_scratch_, &stack_scratch_, &data->reach);
-        }
-        if (Disjoint(moving.data(), data->reach.data() + static_cast<size_t>(w) * words_, words_)) {
-          continue;
-        }
-        if (EnvelopeMinimum(a0, b0, a1, b1, c) < -tolerance[w]) candidates.push_back(w);
       }
-    }
 
-    if (!candidates.empty()) {
-      if (!expanded) ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
-      const double resolution_s = kStallUlps * kEps * std::max(std::abs(t) + tau, h_) / series_.dt;
-      int piece = 0, crossed = -1;
-      double s = 0.0;
-      if (FindEvent(*data, candidates, tolerance, resolution_s, &piece, &s, &crossed)) {
-        const double tau_event = (piece + s) * series_.dt;
-        EvaluateSeries(piece, s, y1.data(), v1.data());
-        // Sides of the other surfaces from the motion before the event (Model::Classify).
-        std::fill(out.begin(), out.end(), 0.0);
-        data->m_active.Apply(v1.data(), out.data());
-        for (int i = 0; i < n_; ++i) {
-          unscaled[i] = scale_[i] * y1[i];
-          unscaled_v[i] = scale_[i] * v1[i];
-          unscaled_a[i] = scale_[i] * out[i];
+      if (!candidates.empty()) {
+        if (!expanded) ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
+        const double resolution_s =
+            kStallUlps * kEps * std::max(std::abs(t) + tau, h_) / series_.dt;
+        int piece = 0;
+        double s = 0.0;
+        if (FindEvent(*data, candidates, tolerance, resolution_s, &piece, &s, &crossed)) {
+          tau_event = (piece + s) * series_.dt;
+          EvaluateSeries(piece, s, y1.data(), v1.data());
+          event = true;
+        } else if (!expanded) {  // the series' end replaced the cached step's: observe that one
+          data->observe.Apply(y1.data(), end.data());
+        }
+      }
+    }  // Taylor or cached step
+
+    if (event) {
+      {
+        // Sides of the other surfaces from the motion before the event (Model::Classify): its
+        // derivatives z', z'', ... up to the state's size, as a motion from rest may start at
+        // any order.
+        for (int i = 0; i < n_; ++i) unscaled[i] = scale_[i] * y1[i];
+        derivatives.resize(n_);
+        std::copy(v1.begin(), v1.end(), out.begin());
+        for (int order = 0; order < n_; ++order) {
+          if (order > 0) {
+            std::fill(dg1.begin(), dg1.end(), 0.0);
+            data->m_active.Apply(out.data(), dg1.data());
+            std::copy(dg1.begin(), dg1.begin() + active_stride_, out.begin());
+          }
+          derivatives[order].resize(n_);
+          for (int i = 0; i < n_; ++i) derivatives[order][i] = scale_[i] * out[i];
+          if (order >= 2 && derivatives[order].cwiseAbs().maxCoeff() == 0.0) break;
         }
         const Model::WatchedSurface surface = data->watched[crossed];
         known_.assign(1, {surface.index, -surface.side});
-        const Phases next = model_.Classify(unscaled, unscaled_v, unscaled_a, known_);
+        const Phases next = model_.Classify(unscaled, derivatives, known_);
         if (tau_event <= kStallUlps * kEps * std::max(std::abs(t), h_)) {
           if (++stalled > kMaxStalledEvents) {
             summary.message = "events do not advance time at t = " + std::to_string(t) +
@@ -827,15 +1151,12 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
         }
         continue;
       }
-      if (!expanded) {  // the series' end replaced the cached step's: observe that one
-        data->observe.Apply(y1.data(), end.data());
-      }
     }
 
     y.swap(y1);
     v.swap(v1);
     Copy(end.data(), count, g0.data());
-    v_norm = v1_norm;
+    v_norm = numerics::MaxAbsPadded(v.data(), active_stride_);
     t = target;
     if (at_breakpoint) {
       // Inputs from their right limit at the breakpoint itself: a breakpoint snapped onto a

@@ -1,12 +1,12 @@
 #include "driveline/model.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <sstream>
-
-#include <Eigen/Eigenvalues>
 
 #include "io/input_error.h"
 #include "io/toml_section.h"
@@ -131,10 +131,10 @@ Reduction ReduceToBand(const Scene& scene) {
       const int a = find(link.from), b = find(link.to);
       reduction.link_rigid[best] = true;
       std::ostringstream line;
-      line << "link '" << link.name << "' (" << FormatNumber(std::round(best_hz)) << " Hz >= "
-           << kBandFactor << " x max(band " << FormatNumber(*scene.band_Hz)
-           << " Hz, fastest kept mode " << FormatNumber(std::round(kept_hz)) << " Hz)) made rigid: "
-           << label[a] << " + " << label[b] << " merged";
+      line << "link '" << link.name << "' (" << FormatNumber(std::round(best_hz))
+           << " Hz >= " << kBandFactor << " x max(band " << FormatNumber(*scene.band_Hz)
+           << " Hz, fastest kept mode " << FormatNumber(std::round(kept_hz))
+           << " Hz)) made rigid: " << label[a] << " + " << label[b] << " merged";
       reduction.report.push_back(line.str());
       root[b] = a;
       inertia[a] += inertia[b];
@@ -174,7 +174,13 @@ double HighestModeHz(const Scene& scene, const Reduction& reduction) {
   }
   const Eigen::VectorXd inv_sqrt = inertia.cwiseSqrt().cwiseInverse();
   const Eigen::MatrixXd scaled = inv_sqrt.asDiagonal() * k * inv_sqrt.asDiagonal();
+  // c/J past the double range (c = 1e300 on J = 1e-10) has no frequency: +inf, never a 0 that
+  // would pass the sample-rate rule.
+  if (!scaled.allFinite()) return std::numeric_limits<double>::infinity();
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(scaled, Eigen::EigenvaluesOnly);
+  if (eigen.info() != Eigen::Success || !eigen.eigenvalues().allFinite()) {
+    return std::numeric_limits<double>::infinity();
+  }
   return std::sqrt(std::max(0.0, eigen.eigenvalues().maxCoeff())) / (2.0 * kPi);
 }
 
@@ -183,6 +189,13 @@ void CheckSampleRate(const Scene& user_scene) {
   const Reduction reduction = ReduceToBand(scene);
   const double f_max = HighestModeHz(scene, reduction);
   const double needed = kSamplesPerFastestPeriod * f_max;
+  if (!std::isfinite(needed)) {
+    throw InputError(
+        (scene.file.empty() ? std::string("<scene>") : scene.file) +
+        ": [[link]] stiffness / [[mass]] inertia: the ratio c/J of some link overflows "
+        "double precision (its natural frequency is not finite); the rule is that "
+        "every stiffness over the inertias it joins stays below about 1e300");
+  }
   if (scene.sample_rate_Hz < needed) {
     throw InputError(
         (scene.file.empty() ? std::string("<scene>") : scene.file) +
@@ -243,8 +256,8 @@ Model::Model(Scene scene) : user_scene_(std::move(scene)) {
   scene_ = ReducedScene(user_scene_);
   shaft_factors_ = ComputeShaftFactors(user_scene_);
   reduction_ = ReduceToBand(scene_);
-  const int groups = 1 + *std::max_element(reduction_.group_of_mass.begin(),
-                                           reduction_.group_of_mass.end());
+  const int groups =
+      1 + *std::max_element(reduction_.group_of_mass.begin(), reduction_.group_of_mass.end());
   group_inertia_.assign(groups, 0.0);
   for (size_t i = 0; i < scene_.masses.size(); ++i) {
     group_inertia_[reduction_.group_of_mass[i]] += scene_.masses[i].inertia_kg_m2;
@@ -342,8 +355,8 @@ void Model::LinearPieces(const Phases& phases, Eigen::MatrixXd* a_out,
                          link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, link.backlash_rad);
     }
     // m = kψ ψ + kv (ω_a − ω_b) + k0; `from` gets −m, `to` gets +m.
-    for (const auto& [row, sign] : {std::pair{wa, -1.0 / group_inertia_[ga]},
-                                    std::pair{wb, 1.0 / group_inertia_[gb]}}) {
+    for (const auto& [row, sign] :
+         {std::pair{wa, -1.0 / group_inertia_[ga]}, std::pair{wb, 1.0 / group_inertia_[gb]}}) {
       a(row, f) += sign * k.kpsi;
       a(row, wa) += sign * k.kv;
       a(row, wb) -= sign * k.kv;
@@ -479,6 +492,11 @@ LinkPhase Model::PhaseFromSides(int k, const int* side) const {
 Phases Model::Classify(const Eigen::VectorXd& z, const Eigen::VectorXd& zdot,
                        const Eigen::VectorXd& zddot,
                        const std::vector<KnownSide>& known_sides) const {
+  return Classify(z, std::vector<Eigen::VectorXd>{zdot, zddot}, known_sides);
+}
+
+Phases Model::Classify(const Eigen::VectorXd& z, const std::vector<Eigen::VectorXd>& derivatives,
+                       const std::vector<KnownSide>& known_sides) const {
   const int count = surface_count();
   // Called at every switching event: work space on the stack for the usual sizes.
   const int n = static_cast<int>(z.size());
@@ -512,16 +530,15 @@ Phases Model::Classify(const Eigen::VectorXd& z, const Eigen::VectorXd& zdot,
       side[j] = g[j] > 0.0 ? 1 : -1;
       continue;
     }
-    // On the surface to roundoff (rare): the motion decides.
-    const double g1 = surfaces_.row(j).dot(zdot), g2 = surfaces_.row(j).dot(zddot);
-    const double scale1 = abs_surfaces_.row(j).dot(zdot.cwiseAbs());
-    const double scale2 = abs_surfaces_.row(j).dot(zddot.cwiseAbs());
-    if (std::abs(g1) > kRoundoffZero * scale1 && g1 != 0.0) {
-      side[j] = g1 > 0.0 ? 1 : -1;
-    } else if (std::abs(g2) > kRoundoffZero * scale2 && g2 != 0.0) {
-      side[j] = g2 > 0.0 ? 1 : -1;
-    } else {
-      side[j] = default_side_[j];
+    // On the surface to roundoff (rare): the motion decides, by its first moving derivative.
+    side[j] = default_side_[j];
+    for (const Eigen::VectorXd& derivative : derivatives) {
+      const double gk = surfaces_.row(j).dot(derivative);
+      const double scale_k = abs_surfaces_.row(j).dot(derivative.cwiseAbs());
+      if (std::abs(gk) > kRoundoffZero * scale_k && gk != 0.0) {
+        side[j] = gk > 0.0 ? 1 : -1;
+        break;
+      }
     }
   }
   Phases phases(backlash_link_count() + (has_drive() ? 1 : 0), '\0');
@@ -539,13 +556,18 @@ Phases Model::Classify(const Eigen::VectorXd& z, const Eigen::VectorXd& zdot,
 }
 
 Phases Model::InitialPhases(const Eigen::VectorXd& z0) const {
-  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(z0.size());
-  Phases phases = Classify(z0, zero, zero, {});
-  // The tie-breaks read the motion, which depends on the phases: iterate to a fixed point.
+  Phases phases = Classify(z0, std::vector<Eigen::VectorXd>{}, {});
+  // The tie-breaks read the motion, which depends on the phases: iterate to a fixed point. At
+  // rest the motion may start at any order up to the size of the state (Cayley-Hamilton: when
+  // the first n derivatives vanish, all do).
+  std::vector<Eigen::VectorXd> derivatives(z0.size());
   for (int iteration = 0; iteration < 8; ++iteration) {
     const Eigen::MatrixXd m = SystemMatrix(phases);
-    const Eigen::VectorXd zdot = m * z0;
-    const Phases next = Classify(z0, zdot, m * zdot, {});
+    derivatives[0].noalias() = m * z0;
+    for (size_t k = 1; k < derivatives.size(); ++k) {
+      derivatives[k].noalias() = m * derivatives[k - 1];
+    }
+    const Phases next = Classify(z0, derivatives, {});
     if (next == phases) break;
     phases = next;
   }
@@ -716,8 +738,8 @@ std::string Model::DescribePhases(const Phases& phases) const {
             ":" + kLinkNames[static_cast<int>(phases[k])];
   }
   if (has_drive()) {
-    text += std::string(text.empty() ? "" : " ") + "drive:" +
-            kDriveNames[static_cast<int>(phases.back())];
+    text += std::string(text.empty() ? "" : " ") +
+            "drive:" + kDriveNames[static_cast<int>(phases.back())];
   }
   return text;
 }

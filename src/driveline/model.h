@@ -13,11 +13,10 @@
 // for a drive: D0 = u − limit, D1 = u + limit with u = kp (ω_ref − ω) + ki ∫.
 #pragma once
 
+#include <Eigen/Dense>
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "driveline/scene.h"
 
@@ -43,9 +42,9 @@ LinkMode ModeOf(LinkPhase phase);
 
 // What the band-limited reduction did.
 struct Reduction {
-  std::vector<int> group_of_mass;       // scene mass → merged mass (group)
-  std::vector<bool> link_rigid;         // scene link → made rigid
-  std::vector<std::string> report;      // one line per merge
+  std::vector<int> group_of_mass;   // scene mass → merged mass (group)
+  std::vector<bool> link_rigid;     // scene link → made rigid
+  std::vector<std::string> report;  // one line per merge
 };
 
 // Makes rigid every link with b = 0 whose two-mass frequency sqrt(c (1/J_a + 1/J_b))/2π is at
@@ -128,6 +127,11 @@ class Model {
   };
   Phases Classify(const Eigen::VectorXd& z, const Eigen::VectorXd& zdot,
                   const Eigen::VectorXd& zddot, const std::vector<KnownSide>& known_sides) const;
+  // The same with the derivatives z', z'', z''', ... in `derivatives` (the first non-zero one
+  // decides): a motion that starts at a higher order (a drive whose torque builds through its lag
+  // from rest) leaves a surface on the side its first moving derivative shows.
+  Phases Classify(const Eigen::VectorXd& z, const std::vector<Eigen::VectorXd>& derivatives,
+                  const std::vector<KnownSide>& known_sides) const;
   // Phases of the initial state (iterates Classify to a fixed point).
   Phases InitialPhases(const Eigen::VectorXd& z0) const;
   // InitialPhases(InitialState()), computed once.
@@ -172,14 +176,14 @@ class Model {
   Reduction reduction_;
   int nx_ = 0;
   int nw_ = 0;
-  std::vector<int> flexible_links_;   // scene link indices kept elastic
-  std::vector<int> flexible_index_;   // scene link → flexible index or −1
-  std::vector<int> backlash_links_;   // flexible indices with b > 0
+  std::vector<int> flexible_links_;        // scene link indices kept elastic
+  std::vector<int> flexible_index_;        // scene link → flexible index or −1
+  std::vector<int> backlash_links_;        // flexible indices with b > 0
   std::vector<int> backlash_of_flexible_;  // flexible index → backlash index or −1
   std::vector<double> group_inertia_;
   Eigen::MatrixXd surfaces_;
-  Eigen::MatrixXd abs_surfaces_;      // |surfaces_|, for roundoff scales
-  std::vector<int> default_side_;     // side of each surface when it cannot be told
+  Eigen::MatrixXd abs_surfaces_;   // |surfaces_|, for roundoff scales
+  std::vector<int> default_side_;  // side of each surface when it cannot be told
   // For rigid links: the scene masses of the group on the link's `to` side.
   std::vector<std::vector<int>> rigid_to_side_masses_;
   Eigen::VectorXd initial_state_;  // InitialState(), computed once
