@@ -17,6 +17,7 @@ struct SimulateArgs {
   std::string solver = "exact";
   double rtol = 1e-8;
   std::optional<double> atol;
+  bool no_check = false;
 };
 
 void WriteResultCsv(const driveline::Scene& scene, const driveline::SimulationResult& result,
@@ -35,8 +36,8 @@ void WriteResultCsv(const driveline::Scene& scene, const driveline::SimulationRe
     const int row = static_cast<int>(k);
     line.clear();
     append(result.time_s[k]);
-    for (const auto* block : {&result.link_torque_Nm, &result.mass_speed_rad_per_s,
-                              &result.link_twist_rad}) {
+    for (const auto* block :
+         {&result.link_torque_Nm, &result.mass_speed_rad_per_s, &result.link_twist_rad}) {
       for (int j = 0; j < block->cols(); ++j) {
         line += ',';
         append((*block)(row, j));
@@ -62,9 +63,23 @@ void RunSimulate(const SimulateArgs& args) {
   options.Validate();
   const driveline::Model model(driveline::LoadScene(args.scene));
   for (const auto& line : model.reduction().report) std::cerr << "band reduction: " << line << "\n";
-  const auto result = driveline::Simulate(model, options);
+  const bool check = options.solver == driveline::SolverKind::kCvode && !args.no_check;
+  const auto result =
+      check ? driveline::SimulateCvodeChecked(model, options) : driveline::Simulate(model, options);
   std::cerr << result.summary.BriefReport() << "\n";
   if (!result.summary.success) throw SolverFailure(args.scene + ": " + result.summary.message);
+  const double target = options.solver == driveline::SolverKind::kExact
+                            ? driveline::kExactErrorTarget
+                            : driveline::kCvodeErrorTarget;
+  if ((options.solver == driveline::SolverKind::kExact || check) &&
+      !(result.summary.error_estimate <= target)) {
+    std::cerr << "warning: " << result.summary.error_kind << " " << result.summary.error_estimate
+              << " is above " << target
+              << (options.solver == driveline::SolverKind::kExact
+                      ? "; the result is written, but its accuracy is only that"
+                      : "; tighten --rtol, or use --solver exact")
+              << "\n";
+  }
   WriteResultCsv(model.scene(), result, args.out);
   std::cout << "scene: " << model.scene().name << " (" << args.scene << ")\n"
             << driveline::FormatDynamicFactorTable(driveline::DynamicFactors(model, result));
@@ -81,7 +96,13 @@ void AddSimulateCommand(CLI::App& app) {
   command->add_option("scene", args->scene, "Scene TOML file")->required();
   command->add_option("--out", args->out, "Result CSV (written atomically)")->required();
   command->add_option("--solver", args->solver, "exact (default) or cvode");
-  command->add_option("--rtol", args->rtol, "CVODE relative tolerance (default 1e-8)");
+  command->add_option("--rtol", args->rtol,
+                      "CVODE relative tolerance (default 1e-8). CVODE runs twice, the second time "
+                      "at rtol/10, and reports the difference as its error (warning above 1e-6 "
+                      "of peak torque)");
+  command->add_flag("--no-check", args->no_check,
+                    "CVODE: one run only, reporting the requested tolerance instead of a "
+                    "measured error");
   command->add_option("--atol", args->atol,
                       "CVODE absolute tolerance as a fraction of each state's typical size "
                       "(default: rtol)");

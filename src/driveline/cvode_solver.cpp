@@ -24,15 +24,22 @@ using numerics::SundialsVector;
 
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 constexpr int kMaxStalledEvents = 64;
+// Root functions are the signed surfaces plus this fraction of their typical magnitude. CVODE
+// deactivates a root function that is zero at the start of an integration and never reports a
+// crossing of it afterwards: a link resting exactly on a flank (gap_position ±1) and pushed
+// into contact would be missed. With the margin the function starts positive and the crossing
+// is reported a roundoff-sized distance past the surface (the exact solver's kCrossingTolerance).
+constexpr double kCrossingMargin = 1e-13;
 
 // Everything the C callbacks read. Callbacks are noexcept and report failure by return code.
 struct Problem {
   const Model* model = nullptr;
   int nx = 0;
-  Eigen::MatrixXd a, b;          // current phases
-  Eigen::VectorXd w0, slope;     // forcing at t_segment and its slope
+  Eigen::MatrixXd a, b;       // current phases
+  Eigen::VectorXd w0, slope;  // forcing at t_segment and its slope
   double t_segment = 0.0;
-  Eigen::MatrixXd rows;          // watched surfaces over [x; w]
+  Eigen::MatrixXd rows;    // watched surfaces over [x; w], signed (>= 0 on the watched side)
+  Eigen::VectorXd margin;  // per watched surface: kCrossingMargin × its typical magnitude
   std::vector<Model::WatchedSurface> watched;
 
   Eigen::VectorXd Forcing(double t) const { return w0 + slope * (t - t_segment); }
@@ -66,7 +73,7 @@ int Roots(sunrealtype t, N_Vector y, sunrealtype* g, void* user_data) noexcept {
     Eigen::Map<const Eigen::VectorXd> x(N_VGetArrayPointer(y), p.nx);
     const Eigen::VectorXd w = p.Forcing(t);
     for (int i = 0; i < static_cast<int>(p.watched.size()); ++i) {
-      g[i] = p.rows.row(i).head(p.nx).dot(x) + p.rows.row(i).tail(w.size()).dot(w);
+      g[i] = p.rows.row(i).head(p.nx).dot(x) + p.rows.row(i).tail(w.size()).dot(w) + p.margin[i];
     }
     return 0;
   } catch (...) {
@@ -91,6 +98,7 @@ SimulationResult SimulateCvode(const Model& model, const SimulationOptions& opti
   SimulationSummary& summary = result.summary;
   summary.solver = "cvode";
   summary.reduction = model.reduction().report;
+  summary.error_kind = "requested tolerance";
   summary.error_estimate = options.rtol;
   OutputRecorder recorder(model, options, OutputTimes(scene, options), &result);
   const std::vector<double>& times = recorder.times();
@@ -108,13 +116,20 @@ SimulationResult SimulateCvode(const Model& model, const SimulationOptions& opti
   problem.nx = nx;
   problem.w0 = z.segment(nx, nw);
   problem.slope = z.tail(nw);
+  const Eigen::VectorXd state_scale = model.StateScale();
   auto configure = [&](const Phases& p) {
     model.LinearPieces(p, &problem.a, &problem.b);
     problem.watched = model.Watched(p);
     problem.rows.resize(static_cast<int>(problem.watched.size()), nx + nw);
+    problem.margin.resize(static_cast<int>(problem.watched.size()));
     for (size_t i = 0; i < problem.watched.size(); ++i) {
-      problem.rows.row(static_cast<int>(i)) =
-          model.surfaces().row(problem.watched[i].index).head(nx + nw);
+      const int r = static_cast<int>(i);
+      problem.rows.row(r) =
+          problem.watched[i].side * model.surfaces().row(problem.watched[i].index).head(nx + nw);
+      problem.margin[r] =
+          kCrossingMargin *
+          (problem.rows.row(r).head(nx).cwiseAbs().dot(state_scale) +
+           problem.rows.row(r).tail(nw).cwiseAbs().dot(problem.w0.cwiseAbs().cwiseMax(1.0)));
     }
   };
   auto record = [&](int sample, double t, const Eigen::VectorXd& x) {
@@ -203,7 +218,10 @@ SimulationResult SimulateCvode(const Model& model, const SimulationOptions& opti
         check(CVodeGetRootInfo(mem, roots_found.data()), "CVodeGetRootInfo");
         std::vector<Model::KnownSide> known;
         for (size_t i = 0; i < roots_found.size(); ++i) {
-          if (roots_found[i] != 0) known.push_back({problem.watched[i].index, roots_found[i]});
+          // The signed function falls through zero: the surface's new side is −side.
+          if (roots_found[i] != 0) {
+            known.push_back({problem.watched[i].index, roots_found[i] * problem.watched[i].side});
+          }
         }
         Eigen::VectorXd state(model.augmented_size());
         state << y_data, problem.Forcing(t), problem.slope;

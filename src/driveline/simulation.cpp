@@ -15,8 +15,10 @@ void SimulationOptions::Validate() const {
     throw InputError("option --rtol: must lie in [1e-14, 1e-2] (got " + FormatNumber(rtol) + ")");
   }
   if (atol && !(*atol > 0.0 && *atol <= 1.0)) {
-    throw InputError("option --atol: must lie in (0, 1], a fraction of each state's typical "
-                     "magnitude (got " + FormatNumber(*atol) + ")");
+    throw InputError(
+        "option --atol: must lie in (0, 1], a fraction of each state's typical "
+        "magnitude (got " +
+        FormatNumber(*atol) + ")");
   }
   if (max_steps < 1) throw InputError("option max_steps: must be >= 1");
   if (max_events < 0) throw InputError("option max_events: must be >= 0");
@@ -60,10 +62,10 @@ std::vector<double> OutputTimes(const Scene& scene, const SimulationOptions& opt
 
 std::string SimulationSummary::BriefReport() const {
   std::ostringstream s;
-  s << solver << ": " << (success ? "success" : "FAILED") << ", " << events << " events, "
-    << steps << " steps";
+  s << solver << ": " << (success ? "success" : "FAILED") << ", " << events << " events, " << steps
+    << " steps";
   if (rhs_evaluations > 0) s << ", " << rhs_evaluations << " rhs";
-  s << ", " << wall_time_s * 1e3 << " ms, error estimate " << error_estimate;
+  s << ", " << wall_time_s * 1e3 << " ms, " << error_kind << " " << error_estimate;
   if (!success) s << ": " << message;
   return s.str();
 }
@@ -71,6 +73,38 @@ std::string SimulationSummary::BriefReport() const {
 SimulationResult Simulate(const Model& model, const SimulationOptions& options) {
   return options.solver == SolverKind::kExact ? SimulateExact(model, options)
                                               : SimulateCvode(model, options);
+}
+
+SimulationResult SimulateCvodeChecked(const Model& model, const SimulationOptions& options) {
+  SimulationOptions finer = options;
+  finer.solver = SolverKind::kCvode;
+  finer.rtol = std::max(options.rtol / 10.0, 1e-14);
+  if (options.atol) finer.atol = *options.atol / 10.0;
+  finer.keep_samples = true;
+  SimulationOptions first = finer;
+  first.rtol = options.rtol;
+  first.atol = options.atol;
+  SimulationResult result = SimulateCvode(model, first);
+  if (!result.summary.success) return result;
+  const SimulationResult reference = SimulateCvode(model, finer);
+  if (!reference.summary.success) {
+    result.summary.error_kind =
+        "error vs rtol/10 (the check run failed: " + reference.summary.message + ")";
+    result.summary.error_estimate = std::numeric_limits<double>::quiet_NaN();
+    return result;
+  }
+  const double peak = reference.link_torque_Nm.size() > 0
+                          ? reference.link_torque_Nm.cwiseAbs().maxCoeff()
+                          : reference.mass_speed_rad_per_s.cwiseAbs().maxCoeff();
+  const SampleMatrix& a =
+      result.link_torque_Nm.size() > 0 ? result.link_torque_Nm : result.mass_speed_rad_per_s;
+  const SampleMatrix& b = reference.link_torque_Nm.size() > 0 ? reference.link_torque_Nm
+                                                              : reference.mass_speed_rad_per_s;
+  result.summary.error_kind = result.link_torque_Nm.size() > 0 ? "error vs rtol/10 (of peak torque)"
+                                                               : "error vs rtol/10 (of peak speed)";
+  result.summary.error_estimate = peak > 0.0 ? (a - b).cwiseAbs().maxCoeff() / peak : 0.0;
+  result.summary.wall_time_s += reference.summary.wall_time_s;
+  return result;
 }
 
 std::vector<DynamicFactor> DynamicFactors(const Model& model, const SimulationResult& result) {
@@ -108,8 +142,8 @@ std::vector<DynamicFactor> DynamicFactors(const Model& model, const SimulationRe
 std::string FormatDynamicFactorTable(const std::vector<DynamicFactor>& factors) {
   std::ostringstream s;
   char line[256];
-  std::snprintf(line, sizeof(line), "%-20s %16s %10s %16s %8s\n", "link", "peak |m| N*m",
-                "at s", "static m_s N*m", "Kd");
+  std::snprintf(line, sizeof(line), "%-20s %16s %10s %16s %8s\n", "link", "peak |m| N*m", "at s",
+                "static m_s N*m", "Kd");
   s << line;
   for (const auto& f : factors) {
     char kd[32];
