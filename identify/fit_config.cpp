@@ -147,10 +147,9 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
         }
       }
     }
-    config.scan_points = static_cast<int>(fit->NonNegative("scan", fit->Number("scan", 32)));
-    config.starts = static_cast<int>(fit->Number("starts", 2));
-    if (config.starts < 1) fit->Fail("starts", "must be >= 1");
-    config.seed = static_cast<unsigned>(fit->NonNegative("seed", fit->Number("seed", 1)));
+    config.scan_points = static_cast<int>(fit->Integer("scan", 32, 0, 100000));
+    config.starts = static_cast<int>(fit->Integer("starts", 2, 1, 10000));
+    config.seed = static_cast<unsigned>(fit->Integer("seed", 1, 0, 4294967295L));
   }
   if (const auto set = top.OptionalTable("set")) {
     for (const auto& [key, node] : set->table()) {

@@ -40,11 +40,11 @@ RecordSpec LoadRecordSpec(const std::string& path, driveline::Scene* scene) {
     d.sample_rate_Hz = record->Positive("sample_rate", record->RequiredNumber("sample_rate"));
     d.duration_s = record->NonNegative("duration", record->Number("duration", 0.0));
     d.noise_fraction = record->InRange("noise", record->Number("noise", 0.0), 0.0, 1.0);
-    d.bits = static_cast<int>(record->InRange("bits", record->Number("bits", 0.0), 0.0, 24.0));
+    d.bits = static_cast<int>(record->Integer("bits", 0, 0, 24));
     d.full_scale = record->InRange("full_scale", record->Number("full_scale", 1.5), 1.0, 100.0);
     d.lowpass_Hz = record->NonNegative("lowpass", record->Number("lowpass", 0.0));
     d.oversample =
-        static_cast<int>(record->InRange("oversample", record->Number("oversample", 16), 1, 1000));
+        static_cast<int>(record->Integer("oversample", 16, 1, 1000));
     d.seed = static_cast<unsigned long>(record->NonNegative("seed", record->Number("seed", 1)));
   } else {
     top.Fail("record", "is required ([record] with sample_rate)");

@@ -25,8 +25,8 @@ toml::table LoadTomlFile(const std::filesystem::path& path) {
   } catch (const toml::parse_error& error) {
     const auto& where = error.source().begin;
     throw InputError(path.string() + ":" + std::to_string(where.line) + ":" +
-                     std::to_string(where.column) + ": TOML syntax: " +
-                     std::string(error.description()));
+                     std::to_string(where.column) +
+                     ": TOML syntax: " + std::string(error.description()));
   }
 }
 
@@ -185,6 +185,23 @@ double TomlSection::InRange(std::string_view key, double value, double low, doub
                   FormatNumber(value) + ")");
   }
   return value;
+}
+
+long TomlSection::Integer(std::string_view key, long fallback, long low, long high) const {
+  const double value = Number(key, static_cast<double>(fallback));
+  if (!(value == std::floor(value) && value >= static_cast<double>(low) &&
+        value <= static_cast<double>(high))) {
+    // Appended piece by piece: GCC 12 reports a false -Wrestrict on literal + std::string.
+    std::string rule = "must be a whole number in [";
+    rule += std::to_string(low);
+    rule += ", ";
+    rule += std::to_string(high);
+    rule += "] (got ";
+    rule += FormatNumber(value);
+    rule += ")";
+    Fail(key, rule);
+  }
+  return static_cast<long>(value);
 }
 
 }  // namespace millkit

@@ -3,14 +3,14 @@
 // must be > 0 (got -5)".
 #pragma once
 
+#include <toml++/toml.h>
+
 #include <filesystem>
 #include <initializer_list>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <toml++/toml.h>
 
 namespace millkit {
 
@@ -52,6 +52,9 @@ class TomlSection {
   double Positive(std::string_view key, double value) const;
   double NonNegative(std::string_view key, double value) const;
   double InRange(std::string_view key, double value, double low, double high) const;
+  // An optional whole number in [low, high], checked before any conversion (a value such as 3e9
+  // or 2.5 is an error naming the rule, never a wrapped or truncated integer).
+  long Integer(std::string_view key, long fallback, long low, long high) const;
 
  private:
   const toml::table* table_;

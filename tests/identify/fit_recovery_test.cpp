@@ -101,7 +101,7 @@ TEST_CASE("Modelling the recorder's anti-alias filter removes its delay from the
   CHECK(bite(without) - truth > 0.5 * kFilterDelay_s);
 }
 
-TEST_CASE("A gap closed at idle is flagged not identifiable; the other parameters are not") {
+TEST_CASE("A gap closed at idle is flagged not identifiable, the other parameters are not") {
   // gap_position = +1: the lower spindle rests on its driving flank, the record never sees the gap.
   const std::map<std::string, double> balanced = {{"lower_spindle.gap_position", 1.0}};
   const Oscillogram record = Mill5Record(0.01, 12, 0.0, 7, balanced);
