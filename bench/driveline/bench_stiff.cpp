@@ -1,0 +1,154 @@
+// Cost against stiffness (issue 11). Not a test: it times.
+//
+// Three families of hard scenes, each swept over the parameter that makes it stiff:
+//  - near-step load: two masses (1000, 500 kg·m²), c = 1e6, d = 100, gap 20 mrad, loads ±1000 N·m
+//    ramped over rise = 1e-2 … 1e-10 s, 10 kHz, 0.2 s;
+//  - fast drive loop: one mass 0.001 kg·m², P-only drive (kp = 1, limit 10 N·m, speed_ref −100),
+//    torque lag 1 … 1e-7 s, 10 Hz, 10 s;
+//  - heavy damping: two masses of 1 kg·m², c = 1e4, gap 10 mrad, load −100 N·m from 0.05 s over
+//    1 ms, damping 1e2 … 1e10, 1 kHz, 0.2 s;
+// and the bundled five-mass bite as the ordinary case. For each: ρ(A) h (StiffnessIndex), wall time of the exact solver and of CVODE at
+// its default rtol 1e-8 (minimum over repeated runs), and both errors against CVODE at rtol 1e-12
+// run in the same process (max |m − m_ref| / max |m_ref| over link torques, speeds for a scene
+// without links). Exits 1 when the exact solver is off the reference by more than 1e-6 of peak or
+// slower than kMaxSlowdown times the ordinary bite.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+#include "driveline/hard_scenes.h"
+#include "driveline/simulation.h"
+
+using namespace millkit::driveline;
+
+namespace {
+
+constexpr double kMaxError = 1e-6;
+constexpr double kMaxSlowdown = 10.0;
+
+double MinimumTime(const std::function<void()>& run, double budget_s) {
+  double best = std::numeric_limits<double>::infinity();
+  const auto begin = std::chrono::steady_clock::now();
+  int runs = 0;
+  do {
+    const auto start = std::chrono::steady_clock::now();
+    run();
+    best = std::min(
+        best, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    ++runs;
+  } while (
+      runs < 3 ||
+      (runs < 200 &&
+       std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count() < budget_s));
+  return best;
+}
+
+const SampleMatrix& Compared(const SimulationResult& result) {
+  return result.link_torque_Nm.cols() > 0 ? result.link_torque_Nm : result.mass_speed_rad_per_s;
+}
+
+double Error(const SimulationResult& value, const SimulationResult& reference) {
+  const double peak = Compared(reference).cwiseAbs().maxCoeff();
+  return (Compared(value) - Compared(reference)).cwiseAbs().maxCoeff() / peak;
+}
+
+// ρ(A) h: the largest |eigenvalue| of the state matrix times the sample step, over the initial
+// phases and the phases with every backlash link in contact and the drive linear. ‖M‖h grows with
+// it; the exact solver's Taylor steps cost ∝ ‖M‖h, its stiff substeps ∝ log(‖M‖h).
+double StiffnessIndex(const Model& model) {
+  Phases contact(model.backlash_link_count() + (model.has_drive() ? 1 : 0),
+                 static_cast<char>(LinkPhase::kPosSpringDamper));
+  if (model.has_drive()) contact.back() = static_cast<char>(DrivePhase::kLinear);
+  double index = 0.0;
+  for (const Phases& phases : {model.InitialPhases(), contact}) {
+    Eigen::MatrixXd a, b;
+    model.LinearPieces(phases, &a, &b);
+    const Eigen::VectorXcd eigenvalues = Eigen::EigenSolver<Eigen::MatrixXd>(a, false).eigenvalues();
+    index = std::max(index, eigenvalues.cwiseAbs().maxCoeff() / model.scene().sample_rate_Hz);
+  }
+  return index;
+}
+
+struct Row {
+  std::string family;
+  std::string value;
+  double index = 0.0;
+  double exact_s = 0.0, cvode_s = 0.0;
+  double exact_error = 0.0, cvode_error = 0.0;
+  long exact_steps = 0;
+  bool ok = true;
+};
+
+Row Measure(const std::string& family, const std::string& value, const Scene& scene) {
+  const Model model(scene);
+  Row row;
+  row.family = family;
+  row.value = value;
+  SimulationOptions reference_options;
+  reference_options.solver = SolverKind::kCvode;
+  reference_options.rtol = 1e-12;
+  const SimulationResult reference = Simulate(model, reference_options);
+  SimulationOptions cvode_options;
+  cvode_options.solver = SolverKind::kCvode;
+  SimulationResult exact, cvode;
+  row.exact_s = MinimumTime([&] { exact = Simulate(model, {}); }, 0.5);
+  row.cvode_s = MinimumTime([&] { cvode = Simulate(model, cvode_options); }, 0.5);
+  row.ok = exact.summary.success && reference.summary.success;
+  if (row.ok) {
+    row.exact_error = Error(exact, reference);
+    row.cvode_error = cvode.summary.success ? Error(cvode, reference) : NAN;
+  }
+  row.index = StiffnessIndex(model);
+  row.exact_steps = exact.summary.steps;
+  return row;
+}
+
+}  // namespace
+
+int main() {
+  std::vector<Row> rows;
+  const Scene bite =
+      LoadScene(std::string(MILLKIT_SOURCE_DIR) + "/datasets/scenes/mill5_bite.toml");
+  rows.push_back(Measure("ordinary bite", "mill5_bite.toml", bite));
+  for (double rise : {1e-2, 1e-4, 1e-6, 1e-8, 1e-10}) {
+    char text[32];
+    std::snprintf(text, sizeof(text), "rise %.0e s", rise);
+    rows.push_back(Measure("near-step load", text, testing::NearStepScene(rise)));
+  }
+  for (double lag : {1.0, 1e-3, 1e-5, 1e-6, 1e-7}) {
+    char text[32];
+    std::snprintf(text, sizeof(text), "lag %.0e s", lag);
+    rows.push_back(Measure("fast drive loop", text, testing::FastDriveScene(lag)));
+  }
+  for (double damping : {1e2, 1e4, 1e6, 1e8, 1e10}) {
+    char text[32];
+    std::snprintf(text, sizeof(text), "d %.0e", damping);
+    rows.push_back(Measure("heavy damping", text, testing::HeavyDampingScene(damping)));
+  }
+  const double ordinary = rows.front().exact_s;
+  std::printf(
+      "| case | rho(A) h | exact ms | exact steps | exact error | CVODE 1e-8 ms | CVODE error |"
+      " exact / bite |\n|---|---|---|---|---|---|---|---|\n");
+  bool pass = true;
+  for (const Row& row : rows) {
+    const bool ok =
+        row.ok && row.exact_error <= kMaxError && row.exact_s <= kMaxSlowdown * ordinary;
+    pass = pass && ok;
+    std::printf("| %s, %s | %.1e | %.3f | %ld | %.1e | %.3f | %.1e | %.2f%s |\n",
+                row.family.c_str(), row.value.c_str(), row.index, 1e3 * row.exact_s,
+                row.exact_steps, row.exact_error, 1e3 * row.cvode_s, row.cvode_error,
+                row.exact_s / ordinary, ok ? "" : " FAIL");
+  }
+  std::printf(
+      "\nreference: CVODE at rtol 1e-12 in the same run; times: minimum over repeated runs "
+      "on one core.\n%s\n",
+      pass ? "PASS: every exact run within 1e-6 of the reference and within 10x the bite" : "FAIL");
+  return pass ? 0 : 1;
+}

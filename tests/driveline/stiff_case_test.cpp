@@ -1,0 +1,242 @@
+// Issue 11: short and stiff phases (a near-step load, a fast drive loop, a heavily damped coupling)
+// cost the exact solver about what an ordinary bite costs, and its answer agrees with CVODE run
+// tight. The references are CVODE at rtol 1e-12 (an independent integrator) and, for the seeded
+// extreme scenes, the exact solver's own clear success-or-failure contract.
+#include <catch2/catch.hpp>
+#include <chrono>
+#include <cmath>
+#include <optional>
+#include <set>
+#include <vector>
+
+#include "driveline/simulation.h"
+#include "extreme_scenes.h"
+#include "hard_scenes.h"
+#include "io/input_error.h"
+#include "scene_builder.h"
+
+using namespace millkit::driveline;
+using namespace millkit::driveline::testing;
+using Catch::Matchers::Contains;
+
+namespace {
+
+// Agreement with CVODE at rtol 1e-12, relative to the peak (issue 11 asks 1e-10 … 1e-7).
+constexpr double kAgreement = 1e-7;
+// Roundoff of a quantity read off the state, in units of its conditioning.
+constexpr double kEpsilon = 2.220446049250313e-16;
+constexpr double kRoundoffUlps = 64.0;
+// The exact solver's own estimate must stay at or below the documented target.
+constexpr double kHonestEstimate = kExactErrorTarget;
+
+SimulationResult TightCvode(const Model& model) {
+  SimulationOptions options;
+  options.solver = SolverKind::kCvode;
+  options.rtol = 1e-12;
+  return Simulate(model, options);
+}
+
+void CheckAgainstCvode(const Scene& scene) {
+  const Model model(scene);
+  const auto exact = Simulate(model, {});
+  const auto reference = TightCvode(model);
+  REQUIRE(exact.summary.success);
+  REQUIRE(reference.summary.success);
+  CHECK(exact.summary.events == reference.summary.events);
+  CHECK(exact.summary.error_estimate <= kHonestEstimate);
+  CHECK(RelativeDifference(exact.mass_speed_rad_per_s, reference.mass_speed_rad_per_s) <=
+        kAgreement);
+  if (scene.links.empty()) return;
+  // A link torque c ψ + d (ω_from − ω_to) is read off the states: its roundoff is that of the
+  // speeds times d, whatever the solver (about 1e-5 N·m at d = 1e10 and 1 rad/s). The comparison
+  // allows that conditioning on top of kAgreement.
+  double conditioning = 0.0;
+  const double speed = reference.mass_speed_rad_per_s.cwiseAbs().maxCoeff();
+  for (const Link& link : scene.links) {
+    conditioning = std::max(conditioning, 2.0 * link.damping_Nms_per_rad * speed);
+  }
+  const double peak = reference.link_torque_Nm.cwiseAbs().maxCoeff();
+  CHECK(RelativeDifference(exact.link_torque_Nm, reference.link_torque_Nm) <=
+        kAgreement + kRoundoffUlps * kEpsilon * conditioning / peak);
+}
+
+}  // namespace
+
+TEST_CASE("A load ramped over 1e-8 to 1e-13 s is integrated as a ramp and agrees with CVODE",
+          "[hard][stiff]") {
+  for (double rise : {1e-8, 1e-9, 1e-10, 1e-13}) {
+    INFO("rise " << rise << " s");
+    CheckAgainstCvode(NearStepScene(rise));
+  }
+}
+
+TEST_CASE("A near-step load costs no more propagations than a step", "[hard][stiff]") {
+  // Steps counted, not timed: the work of a run does not grow with 1 / rise.
+  const auto step = Simulate(Model(NearStepScene(0.0)), {});
+  const auto ramp = Simulate(Model(NearStepScene(1e-10)), {});
+  REQUIRE(step.summary.success);
+  REQUIRE(ramp.summary.success);
+  CHECK(ramp.summary.steps <= step.summary.steps + 2);
+}
+
+TEST_CASE("A drive whose torque lag is 1e-6 or 1e-7 s runs at 10 Hz and agrees with CVODE",
+          "[hard][stiff]") {
+  for (double lag : {1e-6, 1e-7}) {
+    INFO("lag " << lag << " s");
+    CheckAgainstCvode(FastDriveScene(lag));
+  }
+}
+
+TEST_CASE("A coupling damped at 1e8 or 1e10 N*m*s/rad agrees with CVODE", "[hard][stiff]") {
+  for (double damping : {1e8, 1e10}) {
+    INFO("damping " << damping);
+    CheckAgainstCvode(HeavyDampingScene(damping));
+  }
+}
+
+TEST_CASE("The work of a stiff run grows with log(|M| h), not with |M| h", "[hard][stiff]") {
+  // Damping 1e6 … 1e12: |M| h grows a millionfold; the substeps may grow by the ladder's depth.
+  const auto moderate = Simulate(Model(HeavyDampingScene(1e6)), {});
+  const auto extreme = Simulate(Model(HeavyDampingScene(1e12)), {});
+  REQUIRE(moderate.summary.success);
+  REQUIRE(extreme.summary.success);
+  CHECK(extreme.summary.steps <= 10 * moderate.summary.steps);
+}
+
+TEST_CASE("A link resting on its flank and pushed into contact from rest is seen by both solvers",
+          "[hard][stiff]") {
+  // The drive's torque builds through its lag, so the twist leaves the flank at third order in
+  // time: CVODE's root function starts at exactly zero there (it used to miss the contact).
+  Scene scene = TwoMassScene(1.0, 1.0, 1e4, 10.0, 0.01, 0.1, 1000.0);
+  scene.links[0].gap_position = -1.0;
+  scene.drive = Drive{0, -50.0, 10.0, 0.0, 1e-3, 100.0};
+  CheckAgainstCvode(scene);
+  const auto exact = Simulate(Model(scene), {});
+  CHECK(exact.summary.events >= 1);
+}
+
+TEST_CASE("c/J past the double range is an input error, not a solver failure",
+          "[hard][bad_input]") {
+  Scene scene = TwoMassScene(1e-10, 1e-10, 1e300, 1.0, 0.0, 0.1, 1000.0);
+  REQUIRE_THROWS_AS(Model(scene), millkit::InputError);
+  REQUIRE_THROWS_WITH(Model(scene), Contains("overflows"));
+}
+
+TEST_CASE("CVODE's summary names its figure: the tolerance asked for, or a measured error",
+          "[hard]") {
+  const Model model(HeavyDampingScene(1e8));
+  SimulationOptions options;
+  options.solver = SolverKind::kCvode;
+  const auto plain = Simulate(model, options);
+  CHECK(plain.summary.error_kind == "requested tolerance");
+  CHECK_THAT(plain.summary.BriefReport(), Contains("requested tolerance 1e-08"));
+  const auto checked = SimulateCvodeChecked(model, options);
+  REQUIRE(checked.summary.success);
+  CHECK_THAT(checked.summary.error_kind, Contains("rtol/10"));
+  // The measured figure is the difference from a tighter run: it must bound the difference from
+  // the exact answer to within the tighter run's own error (about a tenth of it).
+  const auto exact = Simulate(model, {});
+  const double actual = RelativeDifference(checked.link_torque_Nm, exact.link_torque_Nm);
+  CHECK(actual <= 2.0 * checked.summary.error_estimate + 1e-12);
+}
+
+TEST_CASE("Seeded extreme scenes end in an answer that agrees with CVODE, or a clear failure",
+          "[hard][stiff][generator]") {
+  // 300 scenes from the generator (extreme_scenes.h): 1–4 masses, stiffness 1…1e12, damping 0 or
+  // 1e-3…1e10, gaps 1e-12…0.3 rad, rises 1e-10…1e-2 s, drive lags 1e-7…1 s, gear ratios.
+  constexpr int kSeeds = 300;
+  // A guard against hangs, far above the slowest case measured (0.8 s); not a speed claim.
+  constexpr double kWallGuard_s = 20.0;
+  // Clear failures still open: a surface within roundoff of switching in a stiff phase set (a
+  // 1e-7 or 4e-11 rad gap on a coupling damped at 4e8…1e10; the run stops with "needs more than
+  // 200000 substeps"), and a 4e-12 rad gap pushed from rest that chatters at t = 0.
+  const std::set<int> kKnownFailures = {95, 122, 282};
+  // Known disagreement with a converged CVODE: seed 262, where the two place the first event
+  // 1.7 ms apart (states 1.5e-6 apart; open). (Seed 140, where CVODE misses a 4 µs contact that
+  // falls between two of its steps, 21 events against 23, passes: CVODE's own check run moves by
+  // 1e-2 there, so its measured error covers the difference.)
+  const std::set<int> kKnownDisagreements = {262};
+  // The exact solver against itself on a three times denser grid. Measured: 7.8e-8 at worst (5
+  // seeds above 1e-9, all stiff phase sets with |M| h of 1e8 or more, where exp(M h) itself is
+  // conditioned like |M| h; the propagators are built in long double, which took seed 46 from
+  // 2e-4 to 5e-8). The issue's target is 1e-9 of peak: not met on those 5 seeds (README).
+  constexpr double kSelfConsistency = 1e-7;
+  int answered = 0, failed = 0, compared = 0;
+  for (int seed = 0; seed < kSeeds; ++seed) {
+    INFO("seed " << seed);
+    ExtremeSceneGenerator generator(seed);
+    const Scene scene = generator.Next();
+    std::optional<Model> model;
+    try {
+      model.emplace(scene);
+    } catch (const millkit::InputError&) {
+      continue;  // refused with a named rule: allowed
+    }
+    const auto started = std::chrono::steady_clock::now();
+    const auto exact = Simulate(*model, {});
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    CHECK(wall <= kWallGuard_s);
+    if (!exact.summary.success) {
+      // A clear failure: a reason, and nothing pretending to be a result. Only the known cases
+      // may fail (README, "Not done"); any other failure, and any known one that starts to
+      // succeed, shows here.
+      ++failed;
+      CHECK_FALSE(exact.summary.message.empty());
+      CHECK(kKnownFailures.count(seed) == 1);
+      continue;
+    }
+    CHECK(kKnownFailures.count(seed) == 0);
+    ++answered;
+    REQUIRE(exact.link_torque_Nm.allFinite());
+    REQUIRE(exact.mass_speed_rad_per_s.allFinite());
+    REQUIRE(std::isfinite(exact.summary.error_estimate));
+    // Self-consistency: the same run sampled three times as densely (other step lengths, other
+    // cached propagators, other event searches) gives the same states at the common times.
+    auto relative = [](const SampleMatrix& a, const SampleMatrix& b) {
+      const double peak = std::max(b.cwiseAbs().maxCoeff(), 1e-300);
+      return (a - b).cwiseAbs().maxCoeff() / peak;
+    };
+    SimulationOptions dense;
+    std::vector<double> times;
+    const double h = 1.0 / scene.sample_rate_Hz;
+    for (size_t k = 0; k < exact.time_s.size(); ++k) {
+      times.push_back(exact.time_s[k]);
+      if (k + 1 == exact.time_s.size()) break;
+      times.push_back(exact.time_s[k] + h * (1.0 / 3.0));
+      times.push_back(exact.time_s[k] + h * (2.0 / 3.0));
+    }
+    dense.output_times = times;
+    const auto fine = Simulate(*model, dense);
+    REQUIRE(fine.summary.success);
+    SampleMatrix common(exact.time_s.size(), exact.mass_speed_rad_per_s.cols());
+    for (int k = 0; k < common.rows(); ++k) common.row(k) = fine.mass_speed_rad_per_s.row(3 * k);
+    INFO("estimates " << exact.summary.error_estimate << " " << fine.summary.error_estimate);
+    CHECK(relative(exact.mass_speed_rad_per_s, common) <= kSelfConsistency);
+    // Against CVODE: the states agree within CVODE's own measured error (its run against one at
+    // rtol/10, floor 1e-6), or CVODE moves onto the exact answer as its tolerance is cut a
+    // hundredfold (CVODE's error estimate undershoots on stiff scenes; measured on seeds 163,
+    // 172, 197, 219). The states, not the torques: a stiff damper reads its torque off the
+    // difference of two large speeds, where every solver's roundoff is amplified by d (two exact
+    // runs on different grids differ by 2.6e-4 of peak torque on seed 46, their speeds by 1e-9).
+    SimulationOptions options;
+    options.solver = SolverKind::kCvode;
+    options.rtol = 1e-10;
+    options.max_steps = 2'000'000;
+    const auto cvode = SimulateCvodeChecked(*model, options);
+    if (!cvode.summary.success || !std::isfinite(cvode.summary.error_estimate)) continue;
+    ++compared;
+    const double difference = relative(exact.mass_speed_rad_per_s, cvode.mass_speed_rad_per_s);
+    bool agrees = difference <= std::max(1e-6, 10.0 * cvode.summary.error_estimate);
+    if (!agrees) {
+      options.rtol = 1e-12;
+      const auto tighter = Simulate(*model, options);
+      agrees =
+          tighter.summary.success &&
+          relative(exact.mass_speed_rad_per_s, tighter.mass_speed_rad_per_s) <= difference / 3.0;
+    }
+    CHECK(agrees == (kKnownDisagreements.count(seed) == 0));
+  }
+  WARN(answered << " answered, " << failed << " clear failures, " << compared
+                << " compared with CVODE, of " << kSeeds);
+}
