@@ -7,11 +7,12 @@
 //    torque lag 1 … 1e-7 s, 10 Hz, 10 s;
 //  - heavy damping: two masses of 1 kg·m², c = 1e4, gap 10 mrad, load −100 N·m from 0.05 s over
 //    1 ms, damping 1e2 … 1e10, 1 kHz, 0.2 s;
-// and the bundled five-mass bite as the ordinary case. For each: ρ(A) h (StiffnessIndex), wall time of the exact solver and of CVODE at
-// its default rtol 1e-8 (minimum over repeated runs), and both errors against CVODE at rtol 1e-12
-// run in the same process (max |m − m_ref| / max |m_ref| over link torques, speeds for a scene
-// without links). Exits 1 when the exact solver is off the reference by more than 1e-6 of peak or
-// slower than kMaxSlowdown times the ordinary bite.
+// and the bundled five-mass bite as the ordinary case. For each: ρ(A) h (StiffnessIndex), wall time
+// of the exact solver and of CVODE at its default rtol 1e-8 (minimum over repeated runs), and both
+// errors against CVODE at rtol 1e-12 run in the same process (max |m − m_ref| / max |m_ref| over
+// link torques, speeds for a scene without links). Exits 1 when the exact solver is off the
+// reference by more than 1e-6 of peak or slower than kMaxSlowdown times the ordinary bite.
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -20,8 +21,6 @@
 #include <limits>
 #include <string>
 #include <vector>
-
-#include <Eigen/Eigenvalues>
 
 #include "driveline/hard_scenes.h"
 #include "driveline/simulation.h"
@@ -70,7 +69,8 @@ double StiffnessIndex(const Model& model) {
   for (const Phases& phases : {model.InitialPhases(), contact}) {
     Eigen::MatrixXd a, b;
     model.LinearPieces(phases, &a, &b);
-    const Eigen::VectorXcd eigenvalues = Eigen::EigenSolver<Eigen::MatrixXd>(a, false).eigenvalues();
+    const Eigen::VectorXcd eigenvalues =
+        Eigen::EigenSolver<Eigen::MatrixXd>(a, false).eigenvalues();
     index = std::max(index, eigenvalues.cwiseAbs().maxCoeff() / model.scene().sample_rate_Hz);
   }
   return index;

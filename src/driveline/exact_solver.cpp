@@ -646,10 +646,9 @@ void ExactIntegrator::BuildLadder(PhaseData* data) {
     // Built in long double, the ladder's own error is that of rounding to double: a few ulps of
     // each entry, carried into y through Φ and into v through S (one more step of Φ ≈ σ).
     for (int j = 0; j <= search; ++j) {
-      data->ladder_defect[j] =
-          kLadderUlps * kEps *
-          (phi[j].cwiseAbs().rowwise().sum().maxCoeff() +
-           s[j].cwiseAbs().rowwise().sum().maxCoeff() * std::ldexp(h_, -j));
+      data->ladder_defect[j] = kLadderUlps * kEps *
+                               (phi[j].cwiseAbs().rowwise().sum().maxCoeff() +
+                                s[j].cwiseAbs().rowwise().sum().maxCoeff() * std::ldexp(h_, -j));
     }
   }
   // Start where a fresh transient needs it: the Taylor level.
@@ -748,8 +747,11 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
     ++summary.steps;
     if (stiff_candidates_.empty()) {
       if (!taylor) {
+        // The propagators' rounding, and the conditioning of exp(m σ) itself: the rounding of
+        // m's entries (relative ε) moves the step's motion σ ‖v‖ by about ε ‖m‖ σ of it.
+        const double v_norm = numerics::MaxAbsPadded(vs.data(), active_stride_);
         summary.error_estimate +=
-            numerics::MaxAbsPadded(vs.data(), active_stride_) * data->ladder_defect[level];
+            v_norm * (data->ladder_defect[level] + kEps * data->norm_inf * sigma * sigma);
       }
       accept();
       done = last ? tau : done + sigma;
