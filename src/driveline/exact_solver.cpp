@@ -233,9 +233,10 @@ struct PhaseData {
   PaddedMatrix m_active;  // m on the moving components (see active_)
   double norm_inf = 0.0;  // ‖m‖∞
   std::vector<Model::WatchedSurface> watched;
-  PaddedMatrix rows;     // watched surfaces over y, signed: R = side · G D (>= 0 on the side the
-                         // phases describe), for the surfaces' slopes R v
-  PaddedMatrix observe;  // [R; T D]: watched surfaces, then scene link torques
+  PaddedMatrix rows;      // watched surfaces over y, signed: R = side · G D (>= 0 on the side the
+                          // phases describe), for the surfaces' slopes R v
+  PaddedMatrix abs_rows;  // |R|: |R| |y| is the size of the terms a surface sums (its roundoff)
+  PaddedMatrix observe;   // [R; T D]: watched surfaces, then scene link torques
   // Per watched surface: kCrossingTolerance ‖R_w‖₁ (a crossing's least depth at typical state
   // magnitudes, times the state's size in the step), and bounds of its derivatives.
   std::vector<double> tolerance;
@@ -469,6 +470,22 @@ class ExactIntegrator {
                     int* crossed);
   // Whether surface w cannot move: no component that reaches it moves (v = 0 there).
   bool StaticSurface(PhaseData* data, int w, const double* v);
+  // Per watched surface: the crossing tolerance at states y and y1, kCrossingTolerance times
+  // the size of the terms the surface sums, max(‖R_w‖₁, |R_w| max(|y|, |y1|)). A surface is
+  // measured against its own terms: a large state it does not read (a drive integrator far
+  // from its limit-scaled size) must not widen the tolerance of a 1e-10 rad gap.
+  void Tolerances(const PhaseData& data, const double* y, const double* y1,
+                  std::vector<double>* tolerance) {
+    const int count = static_cast<int>(data.watched.size());
+    size_scratch_.assign(stride_, 0.0);
+    for (int i = 0; i < active_; ++i) size_scratch_[i] = std::max(std::abs(y[i]), std::abs(y1[i]));
+    terms_scratch_.assign(std::max(data.abs_rows.ld(), 4), 0.0);
+    data.abs_rows.Apply(size_scratch_.data(), terms_scratch_.data());
+    tolerance->resize(count);
+    for (int w = 0; w < count; ++w) {
+      (*tolerance)[w] = std::max(data.tolerance[w], kCrossingTolerance * terms_scratch_[w]);
+    }
+  }
   double ActiveMax(const double* y) const {
     double size = 0.0;
     for (int i = 0; i < active_; ++i) size = std::max(size, std::abs(y[i]));
@@ -504,6 +521,7 @@ class ExactIntegrator {
   Eigen::MatrixXd build_m_, build_s_, build_phi_, build_step_, build_product_;
   std::vector<double> stiff_y_, stiff_v_, stiff_g_, stiff_a_, stiff_out_;
   std::vector<int> stiff_candidates_;
+  std::vector<double> size_scratch_, terms_scratch_;
   std::vector<double> stiff_tolerance_;
   std::vector<std::uint64_t> moving_;
   // Output map of kept samples: speed of each scene mass, twist of each flexible scene link.
@@ -550,6 +568,7 @@ MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
     for (int l = 0; l < torque.rows(); ++l) observe(count + l, j) = torque(l, j) * scale_[j];
   }
   data.rows.Assign(observe.topRows(count));
+  data.abs_rows.Assign(observe.topRows(count).cwiseAbs());
   data.observe.Assign(observe);
   // |g''| = |R_w m v| and |g⁗| = |R_w m³ v| with v zero in the slopes, whose rows of m are zero:
   // only the active block counts. ‖R_w m_aaᵏ‖₁ <= |R_w| (|m_aa|ᵏ 1), one vector for all surfaces.
@@ -734,11 +753,9 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
     data->m_active.Apply(vs.data(), acc.data());
     const double a_norm = numerics::MaxAbsPadded(acc.data(), active_stride_);
     const double chord = data->ladder_growth[level] * a_norm * sigma * sigma * 0.125;
-    const double size = std::max({1.0, ActiveMax(ys.data()), ActiveMax(y1)});
+    Tolerances(*data, ys.data(), y1, &stiff_tolerance_);
     stiff_candidates_.clear();
-    stiff_tolerance_.resize(count);
     for (int w = 0; w < count; ++w) {
-      stiff_tolerance_[w] = data->tolerance[w] * size;
       const double lower = std::min(gs[w], end[w]);
       if (lower - data->row_norm[w] * chord + stiff_tolerance_[w] >= 0.0) continue;
       if (end[w] >= -stiff_tolerance_[w] && StaticSurface(data, w, vs.data())) continue;
@@ -1057,11 +1074,10 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
       if (any) {
         data->rows.Apply(v.data(), dg0.data());
         data->rows.Apply(v1.data(), dg1.data());
-        const double size = std::max({1.0, ActiveMax(y.data()), ActiveMax(y1.data())});
+        Tolerances(*data, y.data(), y1.data(), &tolerance);
         bool moving_known = false;
         tolerance.resize(count);
         for (int w = 0; w < count; ++w) {
-          tolerance[w] = data->tolerance[w] * size;
           if (slack[w] >= 0.0) continue;
           if (end[w] < -tolerance[w]) {
             candidates.push_back(w);
