@@ -32,6 +32,9 @@
 // transient has decayed; the short substeps that still do not clear get the Taylor search. The
 // cost is O(log ‖m‖ h) per step and per transient, the cache of phase data is bounded in bytes,
 // and a surface that never clears ends the run with a reason (kMaxStiffSubsteps), never a hang.
+// A degenerate switch, where events stop advancing time (a tiny gap pushed from rest: contact,
+// release and the damping cap meet at one point), is passed by stepping on blind to the
+// chattering surfaces for a short time (kEscapeFraction of h), then watching them again.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -92,6 +95,10 @@ constexpr size_t kMaxCacheBytes = size_t{64} << 20;
 constexpr double kLadderUlps = 4.0;
 // Substeps of one stiff step before the run gives up (a clear failure instead of a hang).
 constexpr long kMaxStiffSubsteps = 200'000;
+// Escapes from a degenerate switch, each blind to the chattering surfaces for this fraction of
+// the step h, before the run gives up with "events do not advance time".
+constexpr int kMaxEscapes = 3;
+constexpr double kEscapeFraction[kMaxEscapes] = {1e-9, 1e-6, 1e-3};
 
 // Typical magnitude of each component of z: states from the model, forcing from the sources.
 // An input slope is scaled by at most value / h: a ramp shorter than the step h (a load written as
@@ -501,6 +508,9 @@ class ExactIntegrator {
   const int active_;
   const int active_stride_;
   std::unordered_map<Phases, PhaseData> cache_;
+  // While escaping a degenerate switch: the surfaces not watched (by model surface index).
+  bool escaping_ = false;
+  std::vector<char> ignored_;
   Phases phases_;  // the current phases, for StiffAdvance's messages
   size_t cache_bytes_ = 0;
   double h_ = 0.0;
@@ -759,6 +769,7 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
       const double lower = std::min(gs[w], end[w]);
       if (lower - data->row_norm[w] * chord + stiff_tolerance_[w] >= 0.0) continue;
       if (end[w] >= -stiff_tolerance_[w] && StaticSurface(data, w, vs.data())) continue;
+      if (escaping_ && ignored_[data->watched[w].index]) continue;
       stiff_candidates_.push_back(w);
     }
     ++summary.steps;
@@ -981,6 +992,11 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
   double t = 0.0;
   bool on_grid = true;  // t is exactly the previous output time
   long stalled = 0;
+  // Escapes from a degenerate switch (see the event handling below).
+  std::vector<int> stall_surfaces;
+  ignored_.assign(surfaces, 0);
+  double escape_until = -1.0;
+  int escapes = 0;
   std::vector<int> candidates;
   std::vector<double> tolerance, slack(surfaces);
   int k = 0;
@@ -1001,8 +1017,15 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
       target = std::min(breakpoints[next_breakpoint], t_grid);
       at_breakpoint = true;
     }
-    const bool at_grid = target >= t_grid * (1.0 - 4 * kEps);
+    bool at_grid = target >= t_grid * (1.0 - 4 * kEps);
     if (at_grid) target = t_grid;
+    escaping_ = escape_until > t;
+    const bool escape_ends = escaping_ && escape_until < target;
+    if (escape_ends) {
+      target = escape_until;
+      at_grid = false;
+      at_breakpoint = false;
+    }
     const double tau = target - t;
     // The cached step serves a step between output times whose gap is h to roundoff of the times
     // themselves (the state lands a few ulps of t off: as exact as t can be stated).
@@ -1079,6 +1102,7 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
         tolerance.resize(count);
         for (int w = 0; w < count; ++w) {
           if (slack[w] >= 0.0) continue;
+          if (escaping_ && ignored_[data->watched[w].index]) continue;
           if (end[w] < -tolerance[w]) {
             candidates.push_back(w);
             continue;
@@ -1146,14 +1170,26 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
         known_.assign(1, {surface.index, -surface.side});
         const Phases next = model_.Classify(unscaled, derivatives, known_);
         if (tau_event <= kStallUlps * kEps * std::max(std::abs(t), h_)) {
+          stall_surfaces.push_back(surface.index);
           if (++stalled > kMaxStalledEvents) {
-            summary.message = "events do not advance time at t = " + std::to_string(t) +
-                              " (chattering between " + model_.DescribePhases(phases) + " and " +
-                              model_.DescribePhases(next) + ")";
-            break;
+            if (escapes >= kMaxEscapes) {
+              summary.message = "events do not advance time at t = " + std::to_string(t) +
+                                " (chattering between " + model_.DescribePhases(phases) + " and " +
+                                model_.DescribePhases(next) + ")";
+              break;
+            }
+            // A degenerate switch (a link pushed from rest: contact, release and the damping
+            // cap meet at one point, and the motion starts at a high order): step on for a
+            // short time in the phases reached, blind to the surfaces that chattered, as CVODE
+            // is to a root function that starts at zero, then watch them again.
+            escape_until = t + tau_event + h_ * kEscapeFraction[escapes];
+            ++escapes;
+            for (int index : stall_surfaces) ignored_[index] = 1;
+            stalled = 0;
           }
         } else {
           stalled = 0;
+          stall_surfaces.clear();
         }
         t += tau_event;
         summary.event_times_s.push_back(t);
@@ -1176,6 +1212,12 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
     Copy(end.data(), count, g0.data());
     v_norm = numerics::MaxAbsPadded(v.data(), active_stride_);
     t = target;
+    if (escape_ends) {  // watch every surface again
+      std::fill(ignored_.begin(), ignored_.end(), 0);
+      escape_until = -1.0;
+      escaping_ = false;
+      stall_surfaces.clear();
+    }
     if (at_breakpoint) {
       // Inputs from their right limit at the breakpoint itself: a breakpoint snapped onto a
       // sample time a few ulps away must not be read as still inside the ramp before it.
@@ -1190,6 +1232,7 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
       on_grid = true;
       Record(&recorder, k, y.data(), end.data() + count);
       ++k;
+      if (!escaping_) escapes = 0;
     } else {
       on_grid = false;
     }
