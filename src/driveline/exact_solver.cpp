@@ -95,6 +95,8 @@ constexpr size_t kMaxCacheBytes = size_t{64} << 20;
 constexpr double kLadderUlps = 4.0;
 // Substeps of one stiff step before the run gives up (a clear failure instead of a hang).
 constexpr long kMaxStiffSubsteps = 200'000;
+// And in the whole run (about 2.5 s on one core): a run that crawls ends with its reason.
+constexpr long kMaxStiffSubstepsPerRun = 20'000'000;
 // Escapes from a degenerate switch, each blind to the chattering surfaces for this fraction of
 // the step h, before the run gives up with "events do not advance time".
 constexpr int kMaxEscapes = 3;
@@ -512,6 +514,7 @@ class ExactIntegrator {
   bool escaping_ = false;
   std::vector<char> ignored_;
   Phases phases_;  // the current phases, for StiffAdvance's messages
+  long stiff_substeps_ = 0;
   size_t cache_bytes_ = 0;
   double h_ = 0.0;
   Eigen::VectorXd scale_, inverse_scale_;
@@ -726,6 +729,16 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
   int level = std::clamp(data->level, 0, search);
   long substeps = 0;
   while (done < tau) {
+    if (++stiff_substeps_ > kMaxStiffSubstepsPerRun) {
+      summary.message = "stiff phase sets needed more than " +
+                        std::to_string(kMaxStiffSubstepsPerRun) +
+                        " substeps by t = " + FormatNumber(t + done) +
+                        " (last: " + model_.DescribePhases(phases_) +
+                        ", |M| h = " + FormatNumber(data->norm_inf * h_) +
+                        "): a switching surface stays within roundoff of zero while the stiff "
+                        "motion moves; try --solver cvode";
+      return false;
+    }
     if (++substeps > kMaxStiffSubsteps) {
       summary.message = "a stiff phase set (" + model_.DescribePhases(phases_) +
                         ", |M| h = " + FormatNumber(data->norm_inf * h_) + ") needs more than " +
