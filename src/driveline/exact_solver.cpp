@@ -495,11 +495,6 @@ class ExactIntegrator {
       (*tolerance)[w] = std::max(data.tolerance[w], kCrossingTolerance * terms_scratch_[w]);
     }
   }
-  double ActiveMax(const double* y) const {
-    double size = 0.0;
-    for (int i = 0; i < active_; ++i) size = std::max(size, std::abs(y[i]));
-    return size;
-  }
 
   const Model& model_;
   const SimulationOptions& options_;
