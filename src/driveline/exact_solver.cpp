@@ -1157,62 +1157,60 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
     }  // Taylor or cached step
 
     if (event) {
-      {
-        // Sides of the other surfaces from the motion before the event (Model::Classify): its
-        // derivatives z', z'', ... up to the state's size, as a motion from rest may start at
-        // any order.
-        for (int i = 0; i < n_; ++i) unscaled[i] = scale_[i] * y1[i];
-        derivatives.resize(n_);
-        std::copy(v1.begin(), v1.end(), out.begin());
-        for (int order = 0; order < n_; ++order) {
-          if (order > 0) {
-            std::fill(dg1.begin(), dg1.end(), 0.0);
-            data->m_active.Apply(out.data(), dg1.data());
-            std::copy(dg1.begin(), dg1.begin() + active_stride_, out.begin());
-          }
-          derivatives[order].resize(n_);
-          for (int i = 0; i < n_; ++i) derivatives[order][i] = scale_[i] * out[i];
-          if (order >= 2 && derivatives[order].cwiseAbs().maxCoeff() == 0.0) break;
+      // Sides of the other surfaces from the motion before the event (Model::Classify): its
+      // derivatives z', z'', ... up to the state's size, as a motion from rest may start at
+      // any order.
+      for (int i = 0; i < n_; ++i) unscaled[i] = scale_[i] * y1[i];
+      derivatives.resize(n_);
+      std::copy(v1.begin(), v1.end(), out.begin());
+      for (int order = 0; order < n_; ++order) {
+        if (order > 0) {
+          std::fill(dg1.begin(), dg1.end(), 0.0);
+          data->m_active.Apply(out.data(), dg1.data());
+          std::copy(dg1.begin(), dg1.begin() + active_stride_, out.begin());
         }
-        const Model::WatchedSurface surface = data->watched[crossed];
-        known_.assign(1, {surface.index, -surface.side});
-        const Phases next = model_.Classify(unscaled, derivatives, known_);
-        if (tau_event <= kStallUlps * kEps * std::max(std::abs(t), h_)) {
-          stall_surfaces.push_back(surface.index);
-          if (++stalled > kMaxStalledEvents) {
-            if (escapes >= kMaxEscapes) {
-              summary.message = "events do not advance time at t = " + std::to_string(t) +
-                                " (chattering between " + model_.DescribePhases(phases) + " and " +
-                                model_.DescribePhases(next) + ")";
-              break;
-            }
-            // A degenerate switch (a link pushed from rest: contact, release and the damping
-            // cap meet at one point, and the motion starts at a high order): step on for a
-            // short time in the phases reached, blind to the surfaces that chattered, as CVODE
-            // is to a root function that starts at zero, then watch them again.
-            escape_until = t + tau_event + h_ * kEscapeFraction[escapes];
-            ++escapes;
-            for (int index : stall_surfaces) ignored_[index] = 1;
-            stalled = 0;
-          }
-        } else {
-          stalled = 0;
-          stall_surfaces.clear();
-        }
-        t += tau_event;
-        summary.event_times_s.push_back(t);
-        y.swap(y1);
-        phases = next;
-        data = Data(phases);
-        refresh();
-        on_grid = false;
-        if (++summary.events > options_.max_events) {
-          summary.message = "more than max_events = " + std::to_string(options_.max_events) +
-                            " switching events by t = " + std::to_string(t);
-          break;
-        }
-        continue;
+        derivatives[order].resize(n_);
+        for (int i = 0; i < n_; ++i) derivatives[order][i] = scale_[i] * out[i];
+        if (order >= 2 && derivatives[order].cwiseAbs().maxCoeff() == 0.0) break;
       }
+      const Model::WatchedSurface surface = data->watched[crossed];
+      known_.assign(1, {surface.index, -surface.side});
+      const Phases next = model_.Classify(unscaled, derivatives, known_);
+      if (tau_event <= kStallUlps * kEps * std::max(std::abs(t), h_)) {
+        stall_surfaces.push_back(surface.index);
+        if (++stalled > kMaxStalledEvents) {
+          if (escapes >= kMaxEscapes) {
+            summary.message = "events do not advance time at t = " + std::to_string(t) +
+                              " (chattering between " + model_.DescribePhases(phases) + " and " +
+                              model_.DescribePhases(next) + ")";
+            break;
+          }
+          // A degenerate switch (a link pushed from rest: contact, release and the damping
+          // cap meet at one point, and the motion starts at a high order): step on for a
+          // short time in the phases reached, blind to the surfaces that chattered, as CVODE
+          // is to a root function that starts at zero, then watch them again.
+          escape_until = t + tau_event + h_ * kEscapeFraction[escapes];
+          ++escapes;
+          for (int index : stall_surfaces) ignored_[index] = 1;
+          stalled = 0;
+        }
+      } else {
+        stalled = 0;
+        stall_surfaces.clear();
+      }
+      t += tau_event;
+      summary.event_times_s.push_back(t);
+      y.swap(y1);
+      phases = next;
+      data = Data(phases);
+      refresh();
+      on_grid = false;
+      if (++summary.events > options_.max_events) {
+        summary.message = "more than max_events = " + std::to_string(options_.max_events) +
+                          " switching events by t = " + std::to_string(t);
+        break;
+      }
+      continue;
     }
 
     y.swap(y1);

@@ -100,9 +100,12 @@ std::vector<double> OutputTimes(const Scene& scene, const SimulationOptions& opt
 SimulationResult Simulate(const Model& model, const SimulationOptions& options);
 SimulationResult SimulateExact(const Model& model, const SimulationOptions& options);
 SimulationResult SimulateCvode(const Model& model, const SimulationOptions& options);
+// The smallest rtol SimulationOptions accepts.
+inline constexpr double kMinRtol = 1e-14;
 // CVODE at options.rtol, checked against a second run at rtol/10 (atol likewise): the result of the
 // first run with error_estimate = max |Δ link torque| / max |link torque| between the two, a
 // measured figure where SimulateCvode reports only the tolerance asked for. Costs both runs.
+// Below rtol 1e-13 there is no tighter run: plain SimulateCvode.
 SimulationResult SimulateCvodeChecked(const Model& model, const SimulationOptions& options);
 // The accuracy a solver's result is expected to reach, relative to peak: beyond it the CLI warns.
 inline constexpr double kExactErrorTarget = 1e-9;
