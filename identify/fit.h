@@ -116,6 +116,9 @@ struct LocalMinimum {
 
 struct FitSummary {
   bool success = false;
+  // "ok", "misfit", "ambiguous", "not_converged" or "degenerate" (empty when the fit failed).
+  std::string verdict;
+  std::vector<std::string> warnings;  // reasons for the verdict and other doubts, in words
   std::string message;
   std::string ceres_brief;   // ceres::Solver::Summary::BriefReport() of the final fit
   std::string termination;
