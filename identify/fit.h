@@ -1,37 +1,39 @@
-// Identification of drive-line parameters from oscillograms (SPEC.md §4, issue 3).
+// Identification of drive-line parameters from oscillograms (SPEC.md §4; issues 3 and 12).
 //
 // The model of channel c at record time t_k is  y_ck ≈ g_c · m_c(t_k; p) + o_c, with m_c the
 // simulated torque of the channel's link (exact solver, sampled at the record's own times: the
 // model is resampled, never the data), p the free scene parameters (damping, backlash, stiffness,
-// inertia, gap_position, bite_time, ...), g_c and o_c the channel's gain and offset. Ceres
-// minimises Σ_c Σ_k w_c² (g_c m_ck + o_c − y_ck)² over the window.
-//
-// Derivatives: ∂m/∂p by finite differences on the exact solver, forward while iterating (by
-// default) and central for the covariance (normalised step 1e-6 of the
-// bound width; the solver's ~1e-12 relative roundoff makes the derivative error ~1e-6 relative,
-// the truncation error ~1e-12), second-order one-sided at a bound; gain and offset analytic.
-// Backlash moves impact times, but with the `limited` law the sampled torque is continuous in p,
-// so the differences are smooth except where an event crosses a sample time.
+// inertia, gap_position, bite_time, ...), g_c and o_c the channel's gain and offset, bounded
+// (gain 0.5–2, offset within ± the channel's peak unless the config says otherwise). The fit
+// minimises ½ Σ_c Σ_k w_c² (g_c m_ck + o_c − y_ck)² over the window, with w_c = 1/σ_c fixed
+// before any model is run: σ_c is the channel's noise measured on the record itself
+// (identify/record_noise.h). Every candidate minimum is compared on that one cost.
 //
 // Several records: each is its own run of the scene; scene parameters are shared, a per-record
 // parameter (bite_time by default) has one value per record, every channel of every record its
-// own gain and offset. The residual is all records' channels, one after another.
+// own gain and offset.
 //
-// Non-convexity: a continuation over the window length (the first stage ends shortly after the
-// response starts, each next stage doubles the span; the first kTimingOnlyStages fit only the
-// scanned parameters), a coarse Latin-hypercube scan over the parameters marked `scan` (gaps,
-// bite time) on the first stage, with gains and offsets solved linearly at each point, then Ceres
-// (Levenberg–Marquardt) through the stages from the best `starts` points. Each start is also
-// fitted on the whole window directly (a short stage can carry the dampings into a neighbouring
-// basin that a good start never leaves); the best minimum wins, and every minimum is reported.
-// Weights: a channel without a weight is first weighted by 1/peak, then by 1/noise estimated from
-// its residual, and the fit is polished with those weights.
+// The search (identify/multistart.h): a Latin-hypercube scan over every free parameter marked
+// `scan` (all by default; dampings and stiffnesses on a log scale, identify/parameter_map.h) with
+// gains and offsets solved in closed form at each point (variable projection), then
+// Levenberg–Marquardt from the best distinct scan points, each through a continuation over the
+// window length and directly on the whole window. Derivatives: finite differences of the exact
+// solver (forward while iterating, central for the covariance).
 //
-// Uncertainty: ceres::Covariance (dense SVD) of all fitted quantities, scaled by the residual
-// variance 2·cost/(N − P) (≈ 1 with noise weights). A parameter is flagged not identifiable when
-// the column-scaled Jacobian is rank-deficient in its direction (reciprocal condition below
-// kRankTolerance) or its standard error exceeds kUnidentifiableFraction of its bound width; its
-// value and standard error are then not to be trusted and the JSON says so.
+// Uncertainty: the covariance of every fitted quantity from the noise-weighted Jacobian,
+// scaled by the residual variance 2·cost/(N − P) (the report says so); where the cost along a
+// parameter's profile direction rises slower than the linearisation says, its standard error is
+// widened to match. Parameters the record cannot determine are flagged not identifiable.
+//
+// The verdict (FitSummary::verdict), in this order:
+//   degenerate     the record cannot support the fit (a value that is not a torque, a flat or
+//                  dead channel, fewer samples after the response starts than fitted quantities);
+//   not_converged  Levenberg–Marquardt did not converge at the best minimum;
+//   misfit         some channel's residual variance exceeds its noise variance beyond the
+//                  one-sided level misfit_z (log-ratio test, both variances' degrees of freedom);
+//   ambiguous      another local minimum, more than distinct_minimum_se standard errors away in
+//                  some identifiable parameter, has a χ² within ambiguity_chi2 of the best;
+//   ok             otherwise (parameters flagged not identifiable are still ok).
 #pragma once
 
 #include <string>
@@ -45,33 +47,48 @@
 
 namespace millkit::identify {
 
-inline constexpr double kRankTolerance = 1e-7;
-inline constexpr double kUnidentifiableFraction = 0.25;
-// Window-length continuation: stages end at onset + span/2^j, j = kContinuationStages − 1 … 0.
-inline constexpr int kContinuationStages = 5;
-// The first stage fits only the scanned parameters (gaps, bite time) and the nuisance gains and
-// offsets; the rest (dampings, stiffness) join afterwards. Measured on the bundled fit: over 100
-// noisy records 20 % fewer simulations and the same minima; 100 of 100 ±50 % starts still
-// converge. Two such stages save 40 % but lose 3 of those 100 starts.
-inline constexpr int kTimingOnlyStages = 1;
-// Iteration cap of a continuation stage before the last: parameters the short window cannot see
-// make Levenberg–Marquardt crawl, and the stage only has to reach the right basin.
-inline constexpr int kStageIterations = 30;
-// The direct whole-window fit of a start (besides the continuation) is finished only when its
-// try, capped at kDirectTryIterations, ends below kDirectRetryFactor times the continued fit's
-// cost.
-inline constexpr double kDirectRetryFactor = 1.5;
-inline constexpr int kDirectTryIterations = 10;
 // Model samples per record step where a channel models the recorder's low-pass filter.
 inline constexpr int kFilterOversample = 4;
 
+// Every knob of the fit's strategy and judgement. The defaults are set by the random-lines
+// benchmark (bench/identify/bench_random_lines.cpp), not by any one scene.
 struct FitOptions {
+  // Levenberg–Marquardt at the final stage.
   int max_iterations = 100;
-  double derivative_step = 1e-6;  // normalised (fraction of the bound width)
-  bool polish_with_noise_weights = true;
+  double function_tolerance = 1e-12;
+  double parameter_tolerance = 1e-10;
+  double derivative_step = 1e-6;  // in unit coordinates (fraction of the bound range)
   // Central instead of forward differences while iterating (the covariance always uses central).
   bool central_differences = false;
-  int threads = 1;                // Ceres threads (the simulations themselves are serial)
+  int threads = 1;  // Ceres threads (the simulations themselves are serial)
+
+  // Continuation: stages end at onset + span/2^j, j = continuation_stages − 1 … 0; the first
+  // timing_only_stages fit only gaps, gap positions and the bite time; a stage before the last
+  // stops after stage_iterations.
+  int continuation_stages = 5;
+  int timing_only_stages = 1;
+  int stage_iterations = 30;
+  // The direct whole-window fit of a start is finished only when its try, capped at
+  // direct_try_iterations, ends below direct_retry_factor times the continued fit's cost.
+  double direct_retry_factor = 1.5;
+  int direct_try_iterations = 10;
+  // Scan points closer than this (RMS over the scanned unit coordinates) are one start.
+  double distinct_start = 0.1;
+
+  // Identifiability: a parameter is flagged when the column-scaled Jacobian is rank-deficient
+  // in its direction (reciprocal condition below rank_tolerance) or its standard error exceeds
+  // unidentifiable_fraction of its bound width.
+  double rank_tolerance = 1e-7;
+  double unidentifiable_fraction = 0.25;
+  // The profile check of the standard errors probes ± profile_step standard errors.
+  double profile_step = 2.0;
+
+  // Verdict levels (see above).
+  double misfit_z = 3.0;
+  double ambiguity_chi2 = 4.0;
+  double distinct_minimum_se = 3.0;
+
+  // Throws InputError naming the option and its rule.
   void Validate() const;
 };
 
@@ -99,7 +116,12 @@ struct ChannelEstimate {
   double gain_se = 0.0;
   double offset = 0.0;  // N·m
   double offset_se = 0.0;
-  double weight = 0.0;  // 1/N·m, as used in the final fit
+  double weight = 0.0;  // 1/N·m, as used in the fit
+  double noise = 0.0;   // N·m, the channel's noise measured on the record
+  std::string noise_source;  // "quiet stretch (m samples)" or "second differences"
+  double chi2_ratio = 0.0;   // residual variance / noise variance
+  bool gain_at_bound = false;
+  bool offset_at_bound = false;
   double rms_residual = 0.0;  // N·m
   int samples = 0;
   std::vector<double> time_s;   // the window samples' times (s)
@@ -108,7 +130,8 @@ struct ChannelEstimate {
 };
 
 struct LocalMinimum {
-  double cost = 0.0;
+  double cost = 0.0;           // the fixed-weight cost: every minimum on the same scale
+  int start = 0;
   std::vector<double> values;  // free scene parameters, physical units
   int iterations = 0;
   bool converged = false;
@@ -125,13 +148,13 @@ struct FitSummary {
   int iterations = 0;
   int scan_points = 0;
   int starts = 0;
-  int starts_at_best = 0;    // local fits reaching the best cost to 1e-6
+  int starts_at_best = 0;    // starts whose fits reach the best minimum (same point)
   long simulations = 0;
   double wall_time_s = 0.0;
   double cost = 0.0;         // ½ Σ weighted residual²
   int residuals = 0;
   int fitted_quantities = 0;
-  double noise_scale = 1.0;  // sqrt(2 cost / (N − P))
+  double noise_scale = 1.0;  // sqrt(2 cost / (N − P)); ≈ 1 when the noise estimates are right
   double reciprocal_condition = 0.0;  // of the column-scaled Jacobian
   std::string BriefReport() const;
 };

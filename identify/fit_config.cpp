@@ -57,9 +57,9 @@ std::pair<double, double> CommonSpan(const std::vector<Oscillogram>& records) {
   return {first, last};
 }
 
-bool ScannedByDefault(SceneParameter::Kind kind) {
-  return kind == SceneParameter::Kind::kBacklash || kind == SceneParameter::Kind::kBiteTime;
-}
+// Every parameter can hold a fit in a wrong basin (a damping too: a wrong one changes which
+// impacts happen), so the scan covers them all unless the config says otherwise.
+bool ScannedByDefault(SceneParameter::Kind) { return true; }
 
 }  // namespace
 
@@ -86,6 +86,14 @@ void ValidateFitConfig(const FitConfig& config, const std::vector<Oscillogram>& 
       }
     }
     if (c.link_index < 0) throw InputError(where + ": channel '" + c.column + "': no such link");
+    if (!(c.gain_lower > 0.0 && c.gain_lower <= 1.0 && c.gain_upper >= 1.0 &&
+          std::isfinite(c.gain_upper))) {
+      throw InputError(where + ": channel '" + c.column +
+                       "': gain bounds must satisfy 0 < lower <= 1 <= upper");
+    }
+    if (c.offset_limit_Nm && !(*c.offset_limit_Nm > 0.0 && std::isfinite(*c.offset_limit_Nm))) {
+      throw InputError(where + ": channel '" + c.column + "': offset_limit must be > 0");
+    }
     if (c.weight && !(*c.weight > 0.0 && std::isfinite(*c.weight))) {
       throw InputError(where + ": channel '" + c.column + "': weight must be > 0");
     }
@@ -184,7 +192,8 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
   index = 0;
   for (const auto& section : top.TableArray("channel")) {
     ++index;
-    section.RequireOnlyKeys({"column", "link", "weight", "gain", "offset", "lowpass"});
+    section.RequireOnlyKeys(
+        {"column", "link", "weight", "gain", "offset", "lowpass", "gain_bounds", "offset_limit"});
     ChannelSpec c;
     c.column = section.RequiredString("column");
     for (const auto& record : records) {
@@ -199,6 +208,18 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
     c.fit_gain = section.Bool("gain", true);
     c.fit_offset = section.Bool("offset", true);
     c.lowpass_Hz = section.NonNegative("lowpass", section.Number("lowpass", 0.0));
+    if (section.Has("gain_bounds")) {
+      const auto bounds = section.NumberArray("gain_bounds");
+      if (bounds.size() != 2 || !(bounds[0] > 0.0 && bounds[0] <= 1.0 && bounds[1] >= 1.0 &&
+                                  std::isfinite(bounds[1]))) {
+        section.Fail("gain_bounds", "must be [lower, upper] with 0 < lower <= 1 <= upper");
+      }
+      c.gain_lower = bounds[0];
+      c.gain_upper = bounds[1];
+    }
+    if (section.Has("offset_limit")) {
+      c.offset_limit_Nm = section.Positive("offset_limit", section.RequiredNumber("offset_limit"));
+    }
     config.channels.push_back(c);
   }
   ValidateFitConfig(config, records, path);

@@ -14,17 +14,19 @@
 //   start = 0.015          # default: the scene's value (after [set])
 //   lower = 0.002
 //   upper = 0.04
-//   scan = true            # part of the coarse scan (default: true for backlash and bite_time)
+//   scan = true            # part of the coarse scan (default: true)
 //   per_record = false     # with several records (--data more than once): one value per record
 //                          # (default: true for bite_time, false otherwise)
 //   [[channel]]
 //   column = "upper_torque"  # record column
 //   link = "upper_spindle"   # default: the column name
-//   weight = 1.0e-3          # 1/N·m (default: 1/noise, estimated from the residual)
+//   weight = 1.0e-3          # 1/N·m (default: 1/noise, measured on the record before the bite)
 //   gain = true              # fit a gain (default true; start 1)
 //   offset = true            # fit an offset (default true; start: mean before bite)
 //   lowpass = 800.0          # Hz: the recorder's first-order anti-alias filter, applied to the
 //                            # model (default 0: none; see identify/instrument_filter.h)
+//   gain_bounds = [0.5, 2.0] # the gain's bounds (default [0.5, 2])
+//   offset_limit = 5.0e4     # N·m: the offset's bound ± (default: the channel's peak |value|)
 //
 // Without a config: every record column named like a link is a channel; free are the damping of
 // every elastic link in [d/10, 10 d], the backlash of every link with b > 0 in [b/5, 3 b], and
@@ -54,10 +56,13 @@ struct ChannelSpec {
   std::string column;
   std::string link;
   int link_index = -1;      // scene link
-  std::optional<double> weight;  // none: 1/noise estimated from the residual
+  std::optional<double> weight;  // none: 1/noise measured on the record (record_noise.h)
   bool fit_gain = true;
   bool fit_offset = true;
   double lowpass_Hz = 0.0;  // the recorder's first-order anti-alias filter, modelled (0: none)
+  double gain_lower = 0.5;
+  double gain_upper = 2.0;
+  std::optional<double> offset_limit_Nm;  // none: the channel's peak |value| in the window
 };
 
 struct FitConfig {

@@ -32,8 +32,11 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
   doc["scene"] = scene_file;
   doc["records"] = record_files;
   const auto& s = result.summary;
-  doc["success"] = s.success;
-  if (!s.success) doc["message"] = s.message;
+  doc["verdict"] = s.success ? s.verdict : "failed";
+  doc["warnings"] = s.warnings;
+  // True only for a fit whose verdict is ok: a result that is not trusted is not a success.
+  doc["success"] = s.success && s.verdict == "ok";
+  if (!s.success || s.verdict == "degenerate") doc["message"] = s.message;
   json parameters = json::array();
   json not_identifiable = json::array();
   for (const auto& p : result.parameters) {
@@ -60,6 +63,11 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
                         {"offset_Nm", Number(c.offset)},
                         {"offset_standard_error_Nm", Number(c.offset_se)},
                         {"weight_per_Nm", c.weight},
+                        {"noise_Nm", Number(c.noise)},
+                        {"noise_source", c.noise_source},
+                        {"residual_to_noise_variance", Number(c.chi2_ratio)},
+                        {"gain_at_bound", c.gain_at_bound},
+                        {"offset_at_bound", c.offset_at_bound},
                         {"rms_residual_Nm", Number(c.rms_residual)},
                         {"samples", c.samples}});
   }
@@ -78,6 +86,7 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
       values[result.parameters[i].name] = m.values[i];
     }
     minima.push_back({{"cost", Number(m.cost)},
+                      {"start", m.start},
                       {"iterations", m.iterations},
                       {"converged", m.converged},
                       {"values", values}});
@@ -95,6 +104,9 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
                     {"residuals", s.residuals},
                     {"fitted_quantities", s.fitted_quantities},
                     {"noise_scale", Number(s.noise_scale)},
+                    {"standard_errors", "scaled by noise_scale^2 (the residual's variance over "
+                                        "the record's noise); widened where the cost's profile "
+                                        "is flatter than its linearisation"},
                     {"reciprocal_condition", Number(s.reciprocal_condition)}};
   return doc.dump(2) + "\n";
 }

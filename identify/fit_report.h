@@ -9,9 +9,12 @@
 
 namespace millkit::identify {
 
-// JSON document: scene, records (files), parameters (value, standard_error, bounds, start,
+// JSON document: verdict ("ok", "misfit", "ambiguous", "not_converged", "degenerate"; "failed"
+// when no fit was made) and warnings (reasons in words), success (verdict ok), scene, records
+// (files), parameters (value, standard_error, bounds, start,
 // at_bound, identifiable, why_not; record for a per-record copy), channels (record, gain,
-// offset with standard errors, weight, rms_residual), correlation
+// offset with standard errors and at-bound flags, weight, noise measured on the record and its
+// source, rms_residual, residual-to-noise variance ratio), correlation
 // (names, matrix), not_identifiable (names), multistart (scan points, starts, minima), summary
 // (ceres brief report, termination, iterations, simulations, wall time, cost, noise scale).
 // A standard error that is not defined (covariance not computable) is null.

@@ -86,6 +86,9 @@ void RunIdentify(const IdentifyArgs& args) {
   if (!result.summary.success) {
     throw SolverFailure(record_list + ": " + result.summary.message);
   }
+  for (const auto& warning : result.summary.warnings) {
+    std::cerr << "millkit identify: warning: " << warning << "\n";
+  }
   json_file.stream() << identify::FitJson(result, args.scene, args.data);
   if (plot_file) {
     plot_file->stream() << identify::FitPlotSvg(result, "millkit identify: " + scene.name +
@@ -98,6 +101,8 @@ void RunIdentify(const IdentifyArgs& args) {
   std::cout << "scene: " << scene.name << " (" << args.scene << "), "
             << (records.size() > 1 ? "records: " : "record: ") << record_list << "\n"
             << ParameterTable(result, records.size() > 1);
+  std::cerr << "millkit identify: verdict: " << result.summary.verdict << "\n";
+  if (result.summary.verdict != "ok") throw NotTrusted("identify");
 }
 
 struct SynthesizeArgs {

@@ -1,5 +1,6 @@
 // millkit: one program, subcommands with --help (SPEC §8).
-// Exit codes: 0 success, 2 bad input, 1 solver failure.
+// Exit codes: 0 success, 2 bad input, 1 solver failure, 3 outputs written but the result not
+// trusted (an identification whose verdict is not ok).
 #include <exception>
 #include <iostream>
 
@@ -29,6 +30,8 @@ int main(int argc, char** argv) {
   } catch (const millkit::InputError& e) {
     std::cerr << "millkit: error: " << e.what() << "\n";
     return 2;
+  } catch (const millkit::NotTrusted&) {
+    return 3;
   } catch (const millkit::SolverFailure& e) {
     std::cerr << "millkit: solver failure: " << e.what() << "\n";
     return 1;

@@ -19,4 +19,12 @@ class SolverFailure : public std::runtime_error {
   explicit SolverFailure(const std::string& message) : std::runtime_error(message) {}
 };
 
+// The work finished and its outputs are written, but its result is not trusted (exit code 3):
+// e.g. an identification whose verdict is not ok. The reasons are already on stderr and in the
+// outputs; the message names the command.
+class NotTrusted : public std::runtime_error {
+ public:
+  explicit NotTrusted(const std::string& message) : std::runtime_error(message) {}
+};
+
 }  // namespace millkit

@@ -1,0 +1,352 @@
+#include "identify/fit_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "identify/fit.h"
+
+namespace millkit::identify {
+
+FitModel::FitModel(const driveline::Scene& scene, const std::vector<Oscillogram>& records,
+                   const FitConfig& config, const std::vector<double>& weights)
+    : scene_(scene), records_(records), config_(config) {
+  const int record_count = static_cast<int>(records.size());
+  labels_ = RecordLabels(records);
+  for (int i = 0; i < static_cast<int>(config.free.size()); ++i) {
+    const auto& free = config.free[i];
+    const auto& name = free.parameter.name;
+    if (free.per_record && record_count > 1) {
+      for (int r = 0; r < record_count; ++r) {
+        slots_.push_back({i, r, name + "@" + labels_[r], ParameterMap(free)});
+      }
+    } else {
+      slots_.push_back({i, -1, name, ParameterMap(free)});
+    }
+  }
+  for (int r = 0; r < record_count; ++r) {
+    const auto& record = records[r];
+    const auto [begin, end] = record.WindowRange(config.window_start_s, config.window_end_s);
+    for (int c = 0; c < static_cast<int>(config.channels.size()); ++c) {
+      const auto& spec = config.channels[c];
+      Block b;
+      b.record = r;
+      b.channel = c;
+      b.column = record.ChannelIndex(spec.column);
+      b.begin = begin;
+      b.end = b.full_end = end;
+      double peak = 0.0;
+      for (int k = begin; k < end; ++k) peak = std::max(peak, std::abs(record.values[b.column][k]));
+      b.scale = std::max(peak, std::numeric_limits<double>::min());
+      b.weight = weights.at(blocks_.size());
+      b.gain_lower = spec.gain_lower;
+      b.gain_upper = spec.gain_upper;
+      const double limit = spec.offset_limit_Nm ? *spec.offset_limit_Nm : peak;
+      b.offset_lower_Nm = -limit;
+      b.offset_upper_Nm = limit;
+      blocks_.push_back(std::move(b));
+    }
+    onsets_.push_back(OnsetTime(r));
+  }
+  SetStage(1.0);
+}
+
+void FitModel::SetStage(double divisor) {
+  int offset = 0;
+  for (auto& b : blocks_) {
+    const auto& record = records_[b.record];
+    b.end = StageEnd(b, divisor);
+    b.measured = Eigen::Map<const Eigen::VectorXd>(record.values[b.column].data() + b.begin,
+                                                   b.end - b.begin);
+    b.offset = offset;
+    offset += b.end - b.begin;
+  }
+  residuals_ = offset;
+}
+
+int FitModel::FewestSamples(double divisor) const {
+  int fewest = std::numeric_limits<int>::max();
+  for (const auto& b : blocks_) fewest = std::min(fewest, StageEnd(b, divisor) - b.begin);
+  return fewest;
+}
+
+int FitModel::StageEnd(const Block& b, double divisor) const {
+  if (divisor == 1.0) return b.full_end;
+  const double onset = onsets_[b.record];
+  const double end_s = onset + (config_.window_end_s - onset) / divisor;
+  return std::min(b.full_end, records_[b.record].WindowRange(config_.window_start_s, end_s).second);
+}
+
+// When record r's response starts: the first time any channel leaves its initial level by a
+// fifth of its largest excursion in the window.
+double FitModel::OnsetTime(int r) const {
+  const auto& record = records_[r];
+  double onset = record.time_s[blocks_.back().full_end - 1];
+  for (const auto& b : blocks_) {
+    if (b.record != r) continue;
+    const auto& y = record.values[b.column];
+    const double initial = y[b.begin];
+    double excursion = 0.0;
+    for (int k = b.begin; k < b.full_end; ++k) excursion = std::max(excursion, std::abs(y[k] - initial));
+    for (int k = b.begin; k < b.full_end; ++k) {
+      if (std::abs(y[k] - initial) > 0.2 * excursion) {
+        onset = std::min(onset, record.time_s[k]);
+        break;
+      }
+    }
+  }
+  return onset;
+}
+
+std::vector<int> FitModel::ConstantIndices() const {
+  std::vector<int> constant;
+  for (int b = 0; b < blocks(); ++b) {
+    if (!channel_spec(b).fit_gain) constant.push_back(gain_index(b));
+    if (!channel_spec(b).fit_offset) constant.push_back(offset_index(b));
+  }
+  return constant;
+}
+
+std::string FitModel::NuisanceName(int b, bool gain) const {
+  std::string name = gain ? "gain." : "offset.";
+  name += channel_spec(b).column;
+  if (records_.size() > 1) {
+    name += "@";
+    name += labels_[blocks_[b].record];
+  }
+  return name;
+}
+
+bool FitModel::Torques(const double* u, std::vector<Eigen::VectorXd>* m, int only_record) const {
+  m->resize(blocks_.size());
+  std::vector<Eigen::VectorXd> torques;
+  const size_t channels = config_.channels.size();
+  for (int r = 0; r < static_cast<int>(records_.size()); ++r) {
+    if (only_record >= 0 && r != only_record) continue;
+    driveline::Scene scene = scene_;
+    for (int s = 0; s < parameters(); ++s) {
+      if (slots_[s].record < 0 || slots_[s].record == r) {
+        free(s).parameter.Set(Physical(s, u[s]), &scene);
+      }
+    }
+    // Blocks of a record are consecutive, in config channel order.
+    const Block& first = blocks_[r * channels];
+    ++simulations_;
+    std::string why;
+    if (!SimulateChannels(scene, records_[r], config_.channels, first.begin, first.end, &torques,
+                          &why)) {
+      last_failure_ = records_.size() > 1 ? records_[r].source + ": " + why : why;
+      return false;
+    }
+    for (size_t c = 0; c < torques.size(); ++c) (*m)[r * channels + c] = std::move(torques[c]);
+  }
+  return true;
+}
+
+Nuisance FitModel::SolveNuisance(int b, const Eigen::VectorXd& m) const {
+  const auto& spec = channel_spec(b);
+  const auto& block = blocks_[b];
+  const auto& y = block.measured;
+  const double n = static_cast<double>(y.size());
+  const double sm = m.sum(), smm = m.squaredNorm(), sy = y.sum(), sym = m.dot(y);
+  // Σ (y − g m − o)² up to the constant Σ y².
+  const auto cost = [&](double g, double o) {
+    return -2.0 * g * sym - 2.0 * o * sy + g * g * smm + 2.0 * g * o * sm + n * o * o;
+  };
+  const auto clamp_gain = [&](double g) { return std::clamp(g, block.gain_lower, block.gain_upper); };
+  const auto clamp_offset = [&](double o) {
+    return std::clamp(o, block.offset_lower_Nm, block.offset_upper_Nm);
+  };
+  // Best gain for a given offset, and best offset for a given gain (each clamped).
+  const auto gain_for = [&](double o) { return smm > 0.0 ? clamp_gain((sym - o * sm) / smm) : 1.0; };
+  const auto offset_for = [&](double g) { return clamp_offset((sy - g * sm) / n); };
+  Nuisance best;
+  if (spec.fit_gain && spec.fit_offset) {
+    // A convex quadratic over a box: its minimum is the free one when inside, else on an edge,
+    // where the one-dimensional minimum clamped to the edge is the edge's best.
+    std::vector<std::pair<double, double>> candidates;
+    const double det = smm * n - sm * sm;
+    if (det > 1e-14 * smm * n) {
+      const double g = (sym * n - sm * sy) / det;
+      const double o = (smm * sy - sm * sym) / det;
+      if (g >= block.gain_lower && g <= block.gain_upper && o >= block.offset_lower_Nm &&
+          o <= block.offset_upper_Nm) {
+        candidates.emplace_back(g, o);
+      }
+    }
+    if (candidates.empty()) {
+      for (const double g : {block.gain_lower, block.gain_upper}) candidates.emplace_back(g, offset_for(g));
+      for (const double o : {block.offset_lower_Nm, block.offset_upper_Nm}) {
+        candidates.emplace_back(gain_for(o), o);
+      }
+      // The unit gain with its best offset (a torque-free model: no gain to fit).
+      candidates.emplace_back(clamp_gain(1.0), offset_for(clamp_gain(1.0)));
+    }
+    double lowest = std::numeric_limits<double>::infinity();
+    for (const auto& [g, o] : candidates) {
+      if (const double c = cost(g, o); c < lowest) {
+        lowest = c;
+        best.gain = g;
+        best.offset_Nm = o;
+      }
+    }
+  } else if (spec.fit_gain) {
+    best.gain = gain_for(0.0);
+  } else if (spec.fit_offset) {
+    best.offset_Nm = offset_for(1.0);
+  }
+  const auto near = [](double v, double bound) {
+    return std::abs(v - bound) <= 1e-12 * std::max(1.0, std::abs(bound));
+  };
+  best.gain_at_bound = spec.fit_gain && (near(best.gain, block.gain_lower) ||
+                                         near(best.gain, block.gain_upper));
+  best.offset_at_bound = spec.fit_offset && (near(best.offset_Nm, block.offset_lower_Nm) ||
+                                             near(best.offset_Nm, block.offset_upper_Nm));
+  return best;
+}
+
+void FitModel::BlockResiduals(int b, const Eigen::VectorXd& m, const Nuisance& n, double* r) const {
+  const auto& block = blocks_[b];
+  Eigen::Map<Eigen::VectorXd>(r + block.offset, block.measured.size()) =
+      block.weight * (n.gain * m.array() + n.offset_Nm - block.measured.array()).matrix();
+}
+
+bool FitModel::Project(const std::vector<Eigen::VectorXd>& m, Eigen::VectorXd* r,
+                       std::vector<Nuisance>* nuisance) const {
+  r->resize(residuals_);
+  if (nuisance != nullptr) nuisance->resize(blocks_.size());
+  for (int b = 0; b < blocks(); ++b) {
+    const Nuisance n = SolveNuisance(b, m[b]);
+    BlockResiduals(b, m[b], n, r->data());
+    if (nuisance != nullptr) (*nuisance)[b] = n;
+  }
+  return r->allFinite();
+}
+
+bool FitModel::ProjectedResiduals(const double* u, Eigen::VectorXd* r,
+                                  std::vector<Nuisance>* nuisance,
+                                  std::vector<Eigen::VectorXd>* m) const {
+  std::vector<Eigen::VectorXd> local;
+  if (m == nullptr) m = &local;
+  return Torques(u, m) && Project(*m, r, nuisance);
+}
+
+double FitModel::ProjectedCost(const double* u) const {
+  Eigen::VectorXd r;
+  if (!ProjectedResiduals(u, &r)) return std::numeric_limits<double>::infinity();
+  return 0.5 * r.squaredNorm();
+}
+
+bool FitModel::FullJacobian(const std::vector<double>& u, const std::vector<Nuisance>& nuisance,
+                            double step, Eigen::VectorXd* r, Eigen::MatrixXd* jacobian) const {
+  std::vector<Eigen::VectorXd> m;
+  if (!Torques(u.data(), &m)) return false;
+  r->resize(residuals_);
+  for (int b = 0; b < blocks(); ++b) BlockResiduals(b, m[b], nuisance[b], r->data());
+  auto& jac = *jacobian;
+  jac.setZero(residuals_, size());
+  for (int b = 0; b < blocks(); ++b) {
+    const auto& block = blocks_[b];
+    const int n = static_cast<int>(block.measured.size());
+    jac.block(block.offset, gain_index(b), n, 1) = block.weight * m[b];
+    jac.block(block.offset, offset_index(b), n, 1).setConstant(block.weight * block.scale);
+  }
+  std::vector<double> probe = u;
+  std::vector<Eigen::VectorXd> m1, m2;
+  for (int i = 0; i < parameters(); ++i) {
+    const int only = slots_[i].record;
+    const double u0 = u[i];
+    const double h = step;
+    const auto simulate = [&](double value, std::vector<Eigen::VectorXd>* out) {
+      probe[i] = value;
+      const bool ok = Torques(probe.data(), out, only);
+      probe[i] = u0;
+      return ok;
+    };
+    const auto write = [&](const auto& derivative_of) {
+      for (int b = 0; b < blocks(); ++b) {
+        const auto& block = blocks_[b];
+        if (only >= 0 && block.record != only) continue;
+        jac.block(block.offset, i, block.measured.size(), 1) =
+            block.weight * nuisance[b].gain * derivative_of(b);
+      }
+    };
+    // Central where both neighbours are inside [0, 1] and simulate; else second-order one-sided
+    // on the side that does.
+    int kind = 0;  // 0 central, +1 forward, −1 backward
+    if (u0 - h < 0.0) kind = +1;
+    else if (u0 + h > 1.0) kind = -1;
+    bool done = false;
+    if (kind == 0) {
+      const bool up = simulate(u0 + h, &m1);
+      const bool down = up && simulate(u0 - h, &m2);
+      done = up && down;
+      if (!done) kind = up ? +1 : -1;
+    }
+    if (done) {
+      write([&](int b) { return Eigen::VectorXd((m1[b] - m2[b]) / (2.0 * h)); });
+      continue;
+    }
+    if (u0 + 2 * kind * h < 0.0 || u0 + 2 * kind * h > 1.0) return false;
+    if (!simulate(u0 + kind * h, &m1) || !simulate(u0 + 2 * kind * h, &m2)) return false;
+    write([&](int b) {
+      return Eigen::VectorXd(kind * (4.0 * m1[b] - 3.0 * m[b] - m2[b]) / (2.0 * h));
+    });
+  }
+  return true;
+}
+
+ProjectedResidual::ProjectedResidual(const FitModel& model, double step, bool central,
+                                     std::vector<int> frozen)
+    : model_(model), step_(step), central_(central), frozen_(std::move(frozen)) {
+  set_num_residuals(model.residuals());
+  mutable_parameter_block_sizes()->push_back(model.parameters());
+}
+
+bool ProjectedResidual::Evaluate(double const* const* parameters, double* residuals,
+                                 double** jacobians) const {
+  const int p = model_.parameters();
+  const int n = model_.residuals();
+  std::vector<double> u(p);
+  for (int i = 0; i < p; ++i) u[i] = ParameterMap::UnitFromAngle(parameters[0][i]);
+  std::vector<Eigen::VectorXd> m;
+  Eigen::VectorXd r;
+  if (!model_.ProjectedResiduals(u.data(), &r, nullptr, &m)) return false;
+  Eigen::Map<Eigen::VectorXd>(residuals, n) = r;
+  if (jacobians == nullptr || jacobians[0] == nullptr) return true;
+  Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> jac(
+      jacobians[0], n, p);
+  jac.setZero();
+  Eigen::VectorXd r1, r2;
+  std::vector<Eigen::VectorXd> probe_m;
+  for (int i = 0; i < p; ++i) {
+    if (std::find(frozen_.begin(), frozen_.end(), i) != frozen_.end()) continue;
+    const double u0 = u[i];
+    // A per-record slot re-simulates only its record; the other records keep their torques.
+    const int only = model_.slot(i).record;
+    const auto probe = [&](double value, Eigen::VectorXd* out) {
+      u[i] = value;
+      probe_m = m;
+      const bool ok = model_.Torques(u.data(), &probe_m, only) && model_.Project(probe_m, out);
+      u[i] = u0;
+      return ok;
+    };
+    if (central_ && u0 - step_ >= 0.0 && u0 + step_ <= 1.0 && probe(u0 + step_, &r1) &&
+        probe(u0 - step_, &r2)) {
+      jac.col(i) = (r1 - r2) / (2.0 * step_);
+    } else {
+      // A probe the solver cannot run (a rare event configuration it rejects) is retried on the
+      // other side before the evaluation is declared failed.
+      double h = u0 + step_ > 1.0 ? -step_ : step_;
+      if (!probe(u0 + h, &r1)) {
+        h = -h;
+        if (u0 + h < 0.0 || u0 + h > 1.0 || !probe(u0 + h, &r1)) return false;
+      }
+      jac.col(i) = (r1 - r) / h;
+    }
+    jac.col(i) *= ParameterMap::UnitPerAngle(parameters[0][i]);
+  }
+  return true;
+}
+
+}  // namespace millkit::identify

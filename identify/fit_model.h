@@ -1,0 +1,148 @@
+// The model evaluation of a fit (identify/ internal): the fitted quantities, the simulation of
+// every record, the residuals and their finite-difference Jacobians.
+//
+// Over R records (one simulation of the scene per record) the fitted quantities are
+//   θ = [u_1 … u_S, g_1, ô_1, …, g_B, ô_B].
+// Slot s is a free parameter, shared by every record or, for a per-record parameter (bite time),
+// one copy per record, in its unit coordinate u_s (identify/parameter_map.h). Block b is one
+// channel of one record, with its own gain g_b and offset ô_b = o_b / S_b (S_b the block's peak
+// |y|, for conditioning). Residuals are the blocks' window samples, block after block, each
+// weighted by its fixed weight w_b = 1/σ_b (identify/record_noise.h) unless the config gives one.
+//
+// Variable projection: while iterating, gains and offsets are not Ceres parameters. For given
+// scene parameters they are solved in closed form (least squares within their bounds), and the
+// residual is that projected one; its finite differences carry the nuisance's response. Only the
+// covariance uses the full θ (FullJacobian).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+#include <ceres/ceres.h>
+
+#include "driveline/scene.h"
+#include "identify/fit_config.h"
+#include "identify/oscillogram.h"
+#include "identify/parameter_map.h"
+
+namespace millkit::identify {
+
+struct Nuisance {
+  double gain = 1.0;
+  double offset_Nm = 0.0;
+  bool gain_at_bound = false;
+  bool offset_at_bound = false;
+};
+
+class FitModel {
+ public:
+  struct Slot {
+    int free = 0;     // index in config.free
+    int record = -1;  // −1: shared by every record
+    std::string name;
+    ParameterMap map;
+  };
+  struct Block {
+    int record = 0;
+    int channel = 0;  // index in config.channels
+    int column = 0;   // index in the record's channels
+    int begin = 0;    // window samples [begin, end) of the record at this stage
+    int end = 0;
+    int full_end = 0;
+    double scale = 1.0;  // peak |y| over the window
+    double weight = 1.0;
+    double gain_lower = 0.0, gain_upper = 0.0;
+    double offset_lower_Nm = 0.0, offset_upper_Nm = 0.0;
+    Eigen::VectorXd measured;
+    int offset = 0;  // first residual of the block
+  };
+
+  // weights: one per block (record by record, channels in config order).
+  FitModel(const driveline::Scene& scene, const std::vector<Oscillogram>& records,
+           const FitConfig& config, const std::vector<double>& weights);
+
+  // Continuation over the window length: each record's window ends at onset + (end − onset)/d
+  // (d = 1: the whole window).
+  void SetStage(double divisor);
+  int FewestSamples(double divisor) const;
+
+  int parameters() const { return static_cast<int>(slots_.size()); }
+  int blocks() const { return static_cast<int>(blocks_.size()); }
+  int size() const { return parameters() + 2 * blocks(); }
+  int gain_index(int b) const { return parameters() + 2 * b; }
+  int offset_index(int b) const { return parameters() + 2 * b + 1; }
+  int residuals() const { return residuals_; }
+  const Block& block(int b) const { return blocks_[b]; }
+  const Slot& slot(int s) const { return slots_[s]; }
+  const FreeParameter& free(int s) const { return config_.free[slots_[s].free]; }
+  const ChannelSpec& channel_spec(int b) const { return config_.channels[blocks_[b].channel]; }
+  const Oscillogram& record(int r) const { return records_[r]; }
+  const std::string& label(int r) const { return labels_[r]; }
+  long simulations() const { return simulations_; }
+  const std::string& last_failure() const { return last_failure_; }
+
+  double Physical(int s, double u) const { return slots_[s].map.Physical(u); }
+  double Unit(int s, double value) const { return slots_[s].map.Unit(value); }
+  // The fitted quantities that are held constant (gains or offsets the config does not fit).
+  std::vector<int> ConstantIndices() const;
+  // Gain.<column> or offset.<column>, with @<record label> when there are several records.
+  std::string NuisanceName(int b, bool gain) const;
+
+  // Simulated link torque of every block for scene parameters u (unit coordinates); with
+  // `only_record` ≥ 0 only that record's blocks are simulated (the others are left as they are).
+  bool Torques(const double* u, std::vector<Eigen::VectorXd>* m, int only_record = -1) const;
+  // The gain and offset that minimise block b's misfit for torque m, within their bounds.
+  Nuisance SolveNuisance(int b, const Eigen::VectorXd& m) const;
+  // Weighted residuals w_b (g_b m_b + o_b − y_b) of block b into r (its own rows).
+  void BlockResiduals(int b, const Eigen::VectorXd& m, const Nuisance& n, double* r) const;
+  // Residuals of every block for torques m with the nuisance solved; false when not finite.
+  bool Project(const std::vector<Eigen::VectorXd>& m, Eigen::VectorXd* r,
+               std::vector<Nuisance>* nuisance = nullptr) const;
+  // Projected residuals of every block (nuisance solved); false when a simulation fails.
+  bool ProjectedResiduals(const double* u, Eigen::VectorXd* r,
+                          std::vector<Nuisance>* nuisance = nullptr,
+                          std::vector<Eigen::VectorXd>* m = nullptr) const;
+  // ½ Σ r² of the projected residuals; +inf when a simulation fails.
+  double ProjectedCost(const double* u) const;
+
+  // Jacobian of the full (unprojected) residual over θ at u and the nuisance, by central
+  // differences of the scene parameters (second-order one-sided at a bound) with normalised
+  // step h, analytic in the gains and offsets. False when a simulation fails.
+  bool FullJacobian(const std::vector<double>& u, const std::vector<Nuisance>& nuisance,
+                    double step, Eigen::VectorXd* r, Eigen::MatrixXd* jacobian) const;
+
+ private:
+  int StageEnd(const Block& b, double divisor) const;
+  double OnsetTime(int r) const;
+
+  const driveline::Scene& scene_;
+  const std::vector<Oscillogram>& records_;
+  const FitConfig& config_;
+  std::vector<std::string> labels_;
+  std::vector<Slot> slots_;
+  std::vector<Block> blocks_;
+  std::vector<double> onsets_;
+  int residuals_ = 0;
+  mutable long simulations_ = 0;
+  mutable std::string last_failure_;
+};
+
+// The projected misfit as one Ceres residual block over the angles φ of the scene parameters.
+// Jacobian by finite differences in u (forward, or central when asked) chained with du/dφ; a
+// per-record slot re-simulates only its record. Frozen slots keep a zero column, unsimulated.
+class ProjectedResidual : public ceres::CostFunction {
+ public:
+  ProjectedResidual(const FitModel& model, double step, bool central,
+                    std::vector<int> frozen = {});
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+
+ private:
+  const FitModel& model_;
+  double step_;
+  bool central_;
+  std::vector<int> frozen_;
+};
+
+}  // namespace millkit::identify

@@ -1,0 +1,166 @@
+#include "identify/multistart.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+namespace millkit::identify {
+namespace {
+
+ceres::Problem::Options ProblemOptions() {
+  ceres::Problem::Options options;
+  options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  return options;
+}
+
+// Impact timing: what a short window after the onset sees well.
+bool TimingParameter(const FreeParameter& free) {
+  using Kind = driveline::SceneParameter::Kind;
+  const auto kind = free.parameter.kind;
+  return kind == Kind::kBacklash || kind == Kind::kGapPosition || kind == Kind::kBiteTime;
+}
+
+}  // namespace
+
+std::vector<std::vector<double>> ScanStarts(const FitModel& model, const FitConfig& config,
+                                            const FitOptions& options,
+                                            const std::vector<double>& start, int* evaluated) {
+  std::vector<int> scanned;
+  for (int i = 0; i < model.parameters(); ++i) {
+    if (model.free(i).scan) scanned.push_back(i);
+  }
+  const int points = scanned.empty() ? 0 : config.scan_points;
+  std::mt19937_64 random(config.seed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<std::vector<double>> lattice(scanned.size(), std::vector<double>(points));
+  for (auto& column : lattice) {
+    for (int k = 0; k < points; ++k) column[k] = (k + uniform(random)) / points;
+    std::shuffle(column.begin(), column.end(), random);
+  }
+  std::vector<std::pair<double, std::vector<double>>> candidates;
+  for (int k = -1; k < points; ++k) {
+    std::vector<double> u = start;
+    if (k >= 0) {
+      for (size_t s = 0; s < scanned.size(); ++s) u[scanned[s]] = lattice[s][k];
+    }
+    const double cost = model.ProjectedCost(u.data());
+    if (std::isfinite(cost)) candidates.emplace_back(cost, u);
+  }
+  *evaluated = points;
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  const auto distance = [&](const std::vector<double>& a, const std::vector<double>& b) {
+    double sum = 0.0;
+    for (const int s : scanned) sum += (a[s] - b[s]) * (a[s] - b[s]);
+    return std::sqrt(sum / std::max<size_t>(1, scanned.size()));
+  };
+  std::vector<std::vector<double>> best;
+  for (const auto& [cost, u] : candidates) {
+    if (static_cast<int>(best.size()) >= config.starts) break;
+    const bool distinct = std::all_of(best.begin(), best.end(), [&](const auto& other) {
+      return distance(u, other) >= options.distinct_start;
+    });
+    if (distinct) best.push_back(u);
+  }
+  return best;
+}
+
+LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<double> u,
+                bool final_stage, int iterations, const std::vector<int>& frozen) {
+  ProjectedResidual residual(model, options.derivative_step, options.central_differences, frozen);
+  ceres::Problem problem(ProblemOptions());
+  std::vector<double> phi(u.size());
+  for (size_t i = 0; i < u.size(); ++i) phi[i] = ParameterMap::AngleFromUnit(u[i]);
+  LocalFit fit;
+  if (phi.empty()) {
+    // Nothing but gains and offsets: the projection is the whole fit.
+    fit.u = std::move(u);
+    fit.cost = model.ProjectedCost(fit.u.data());
+    fit.usable = fit.converged = std::isfinite(fit.cost);
+    return fit;
+  }
+  problem.AddResidualBlock(&residual, nullptr, phi.data());
+  if (!frozen.empty()) {
+    if (static_cast<int>(frozen.size()) == model.parameters()) {
+      problem.SetParameterBlockConstant(phi.data());
+    } else {
+      problem.SetManifold(phi.data(), new ceres::SubsetManifold(model.parameters(), frozen));
+    }
+  }
+  ceres::Solver::Options solver;
+  solver.linear_solver_type = ceres::DENSE_QR;
+  solver.max_num_iterations = final_stage ? options.max_iterations : iterations;
+  solver.function_tolerance = final_stage ? options.function_tolerance : 1e-6;
+  solver.parameter_tolerance = final_stage ? options.parameter_tolerance : 1e-6;
+  solver.gradient_tolerance = 1e-20;
+  solver.num_threads = options.threads;
+  solver.logging_type = ceres::SILENT;
+  ceres::Solve(solver, &problem, &fit.summary);
+  fit.u.resize(phi.size());
+  for (size_t i = 0; i < phi.size(); ++i) fit.u[i] = ParameterMap::UnitFromAngle(phi[i]);
+  fit.usable = fit.summary.IsSolutionUsable() && std::isfinite(fit.summary.final_cost);
+  fit.converged = fit.summary.termination_type == ceres::CONVERGENCE;
+  fit.cost = fit.usable ? fit.summary.final_cost : std::numeric_limits<double>::infinity();
+  if (!fit.usable && fit.summary.termination_type == ceres::FAILURE) {
+    // Ceres stops when the Jacobian cannot be evaluated at an accepted point (a simulation the
+    // solver rejects at a finite-difference probe). The accepted point itself is a valid,
+    // improved answer; the next stage carries on from it. It has not converged.
+    fit.cost = model.ProjectedCost(fit.u.data());
+    fit.usable = std::isfinite(fit.cost);
+  }
+  return fit;
+}
+
+std::vector<LocalFit> RefineStarts(FitModel* model, const FitOptions& options,
+                                   const std::vector<std::vector<double>>& starts) {
+  // Continuation over the window length: the first stage ends shortly after the response starts,
+  // where impact timing (gaps, bite time) dominates and the misfit has few local minima; each
+  // stage doubles the fitted span and starts from the previous stage's answer.
+  std::vector<double> stages;  // window divisors, the last 1 (the whole window)
+  for (int j = options.continuation_stages - 1; j >= 1; --j) {
+    const double divisor = static_cast<double>(1 << j);
+    if (model->FewestSamples(divisor) >= kMinRecordSamples) stages.push_back(divisor);
+  }
+  stages.push_back(1.0);
+  // The first timing_only_stages fit only the timing parameters; the others (dampings,
+  // stiffness), which a short window hardly constrains, are held at their start there.
+  std::vector<int> not_timing;
+  for (int i = 0; i < model->parameters(); ++i) {
+    if (!TimingParameter(model->free(i))) not_timing.push_back(i);
+  }
+  if (static_cast<int>(not_timing.size()) == model->parameters()) not_timing.clear();
+
+  std::vector<LocalFit> minima;
+  for (int s = 0; s < static_cast<int>(starts.size()); ++s) {
+    LocalFit fit;
+    fit.u = starts[s];
+    int stage_number = 0;
+    for (const double divisor : stages) {
+      model->SetStage(divisor);
+      const bool timing_only = stage_number++ < options.timing_only_stages && divisor != 1.0;
+      fit = Refine(*model, options, fit.u, divisor == 1.0, options.stage_iterations,
+                   timing_only ? not_timing : std::vector<int>{});
+      if (!fit.usable) break;
+    }
+    fit.start = s;
+    const double continued_cost = fit.cost;
+    minima.push_back(std::move(fit));
+    // The same start refined on the whole window at once. A short stage sees the dampings
+    // poorly, and noise can carry them into the basin of a neighbouring minimum of the whole
+    // window; a fit from a start inside the right basin stays there. A capped try first: it is
+    // finished only when it comes near the continued fit.
+    if (stages.size() > 1) {
+      model->SetStage(1.0);
+      LocalFit direct = Refine(*model, options, starts[s], false, options.direct_try_iterations);
+      if (direct.usable && direct.cost < options.direct_retry_factor * continued_cost) {
+        direct = Refine(*model, options, direct.u, true, options.max_iterations);
+        direct.start = s;
+        minima.push_back(std::move(direct));
+      }
+    }
+  }
+  model->SetStage(1.0);
+  return minima;
+}
+
+}  // namespace millkit::identify

@@ -1,0 +1,44 @@
+// The global search of a fit (identify/ internal): a coarse scan, then Levenberg–Marquardt from
+// the best distinct scan points, each through a continuation over the window length and directly
+// on the whole window. Every local minimum is kept: the verdict compares them.
+#pragma once
+
+#include <limits>
+#include <vector>
+
+#include <ceres/ceres.h>
+
+#include "identify/fit.h"
+#include "identify/fit_model.h"
+
+namespace millkit::identify {
+
+struct LocalFit {
+  std::vector<double> u;  // scene parameters, unit coordinates
+  double cost = std::numeric_limits<double>::infinity();  // projected, whole window
+  ceres::Solver::Summary summary;
+  bool usable = false;
+  bool converged = false;  // Ceres reported CONVERGENCE
+  int start = -1;          // which start it came from
+};
+
+// The scan: `start`, then a Latin hypercube of config.scan_points over the scanned slots (the
+// others at their start), each point's gains and offsets solved in closed form; its cost is the
+// whole window's. Returns up to config.starts points, best first, no two closer than
+// options.distinct_start (RMS distance in unit coordinates over the scanned slots).
+std::vector<std::vector<double>> ScanStarts(const FitModel& model, const FitConfig& config,
+                                            const FitOptions& options,
+                                            const std::vector<double>& start, int* evaluated);
+
+// Levenberg–Marquardt on the current stage of `model` from u; a stage before the last stops at a
+// loose tolerance after `iterations` (its answer only has to start the next stage inside the right
+// basin). Frozen slots are held.
+LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<double> u,
+                bool final_stage, int iterations, const std::vector<int>& frozen = {});
+
+// Every start refined through the continuation and, besides, directly on the whole window; the
+// model is left on the whole window. Returns every local minimum (whole-window costs).
+std::vector<LocalFit> RefineStarts(FitModel* model, const FitOptions& options,
+                                   const std::vector<std::vector<double>>& starts);
+
+}  // namespace millkit::identify

@@ -1,0 +1,120 @@
+#include "identify/record_noise.h"
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <limits>
+#include <sstream>
+
+namespace millkit::identify {
+namespace {
+
+double Median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const auto middle = values.begin() + static_cast<long>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+double Peak(const std::vector<double>& y) {
+  double peak = 0.0;
+  for (const double v : y) peak = std::max(peak, std::abs(v));
+  return peak;
+}
+
+std::string Short(double value) {
+  std::ostringstream out;
+  out << std::setprecision(3) << value;
+  return out.str();
+}
+
+}  // namespace
+
+int QuietStretchEnd(const Oscillogram& record, const std::vector<int>& columns) {
+  const int n = static_cast<int>(record.time_s.size());
+  int onset = n;
+  for (const int column : columns) {
+    const auto& y = record.values[column];
+    const double initial = Median(std::vector<double>(y.begin(), y.begin() + std::min(n, 5)));
+    double excursion = 0.0;
+    for (const double v : y) excursion = std::max(excursion, std::abs(v - initial));
+    if (!(excursion > 0.0) || !std::isfinite(excursion)) continue;
+    for (int k = 0; k < n; ++k) {
+      if (std::abs(y[k] - initial) > kOnsetFraction * excursion) {
+        onset = std::min(onset, k);
+        break;
+      }
+    }
+  }
+  return static_cast<int>((1.0 - kQuietMargin) * onset);
+}
+
+ChannelNoise EstimateChannelNoise(const Oscillogram& record, int column, int quiet_end, int begin,
+                                  int end) {
+  const auto& y = record.values[column];
+  const auto& t = record.time_s;
+  ChannelNoise noise;
+  if (quiet_end >= kMinQuietSamples) {
+    // Least-squares line through the quiet stretch (times centred for conditioning).
+    const int m = quiet_end;
+    double tm = 0.0, ym = 0.0;
+    for (int k = 0; k < m; ++k) {
+      tm += t[k];
+      ym += y[k];
+    }
+    tm /= m;
+    ym /= m;
+    double stt = 0.0, sty = 0.0;
+    for (int k = 0; k < m; ++k) {
+      stt += (t[k] - tm) * (t[k] - tm);
+      sty += (t[k] - tm) * (y[k] - ym);
+    }
+    const double slope = stt > 0.0 ? sty / stt : 0.0;
+    double sum = 0.0;
+    for (int k = 0; k < m; ++k) {
+      const double r = y[k] - ym - slope * (t[k] - tm);
+      sum += r * r;
+    }
+    noise.sigma_Nm = std::sqrt(sum / (m - 2));
+    noise.dof = m - 2;
+    noise.from_quiet_stretch = true;
+    noise.quiet_samples = m;
+  } else {
+    std::vector<double> second;
+    for (int k = begin + 2; k < end; ++k) second.push_back(std::abs(y[k] - 2.0 * y[k - 1] + y[k - 2]));
+    noise.sigma_Nm = 1.4826 * Median(second) / std::sqrt(6.0);
+    // The median's efficiency for Gaussian data is 2/π.
+    noise.dof = 0.637 * static_cast<double>(second.size());
+  }
+  const double floor = kNoiseFloorFraction * Peak(y);
+  if (!(noise.sigma_Nm >= floor)) noise.sigma_Nm = floor;
+  return noise;
+}
+
+std::string DegenerateColumn(const Oscillogram& record, int column, int begin, int end,
+                             double sigma_Nm) {
+  const auto& y = record.values[column];
+  const std::string name = record.source + ", column " + record.channels[column];
+  double low = std::numeric_limits<double>::infinity();
+  double high = -low;
+  for (int k = begin; k < end; ++k) {
+    if (!std::isfinite(y[k]) || std::abs(y[k]) > kAbsurdTorque_Nm) {
+      return name + ": value " + Short(y[k]) + " at t = " + Short(record.time_s[k]) +
+             " s is not a torque (beyond " + Short(kAbsurdTorque_Nm) + " N*m)";
+    }
+    low = std::min(low, y[k]);
+    high = std::max(high, y[k]);
+  }
+  if (!(high - low > 0.0)) {
+    return name + ": the channel is constant (" + Short(low) +
+           " N*m) over the window: a dead or disconnected gauge";
+  }
+  // A response must stand out of the noise; 10 σ peak to peak is a clear one.
+  if (high - low < 10.0 * sigma_Nm) {
+    return name + ": the channel varies by " + Short(high - low) + " N*m over the window, " +
+           "less than 10 times its noise " + Short(sigma_Nm) + " N*m: no response to fit";
+  }
+  return "";
+}
+
+}  // namespace millkit::identify

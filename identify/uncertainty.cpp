@@ -1,0 +1,143 @@
+#include "identify/uncertainty.h"
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <limits>
+#include <sstream>
+
+namespace millkit::identify {
+namespace {
+
+std::string Short(double value) {
+  std::ostringstream out;
+  out << std::setprecision(3) << value;
+  return out.str();
+}
+
+// Singular values below this fraction of the largest are the null space of the covariance
+// (eigenvalues of JᵀJ below 1e-14 of the largest: roundoff of the finite differences).
+constexpr double kCovarianceCut = 1e-7;
+
+}  // namespace
+
+Eigen::MatrixXd Covariance(const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted,
+                           double noise_scale) {
+  const int size = static_cast<int>(jacobian.cols());
+  Eigen::MatrixXd reduced(jacobian.rows(), fitted.size());
+  for (size_t j = 0; j < fitted.size(); ++j) reduced.col(j) = jacobian.col(fitted[j]);
+  // Column scaling first: quantities in different units must not cut each other's singular
+  // values.
+  Eigen::VectorXd norms(fitted.size());
+  for (int j = 0; j < reduced.cols(); ++j) {
+    norms(j) = reduced.col(j).norm();
+    if (norms(j) > 0.0) reduced.col(j) /= norms(j);
+  }
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(reduced, Eigen::ComputeThinV);
+  const auto& sv = svd.singularValues();
+  Eigen::VectorXd inverse_square = Eigen::VectorXd::Zero(sv.size());
+  for (int k = 0; k < sv.size(); ++k) {
+    if (sv(k) > kCovarianceCut * sv(0)) inverse_square(k) = 1.0 / (sv(k) * sv(k));
+  }
+  const Eigen::MatrixXd& v = svd.matrixV();
+  Eigen::MatrixXd scaled = v * inverse_square.asDiagonal() * v.transpose();
+  Eigen::MatrixXd covariance = Eigen::MatrixXd::Zero(size, size);
+  for (size_t a = 0; a < fitted.size(); ++a) {
+    for (size_t b = 0; b < fitted.size(); ++b) {
+      const double na = norms(a) > 0.0 ? norms(a) : std::numeric_limits<double>::quiet_NaN();
+      const double nb = norms(b) > 0.0 ? norms(b) : std::numeric_limits<double>::quiet_NaN();
+      covariance(fitted[a], fitted[b]) = scaled(a, b) / (na * nb) * noise_scale * noise_scale;
+    }
+  }
+  return covariance;
+}
+
+void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
+                        const std::vector<int>& fitted, double noise_scale,
+                        const FitOptions& options, FitResult* result) {
+  const int p = model.parameters();
+  Eigen::MatrixXd scaled(jacobian.rows(), fitted.size());
+  std::vector<double> norms(fitted.size());
+  for (size_t j = 0; j < fitted.size(); ++j) {
+    norms[j] = jacobian.col(fitted[j]).norm();
+    scaled.col(j) = norms[j] > 0.0 ? Eigen::VectorXd(jacobian.col(fitted[j]) / norms[j])
+                                   : Eigen::VectorXd(jacobian.col(fitted[j]));
+  }
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinV);
+  const auto& sv = svd.singularValues();
+  result->summary.reciprocal_condition =
+      sv.size() > 0 && sv(0) > 0.0 ? sv(sv.size() - 1) / sv(0) : 0.0;
+  for (size_t j = 0; j < fitted.size(); ++j) {
+    if (fitted[j] >= p) continue;  // gains and offsets are reported, not flagged
+    const int s = fitted[j];
+    auto& estimate = result->parameters[s];
+    const double width = estimate.upper - estimate.lower;
+    const double limit = options.unidentifiable_fraction * width;
+    // noise/‖column‖ is in unit coordinates; dp/du converts it.
+    const double per_unit = model.slot(s).map.PhysicalPerUnit(model.Unit(s, estimate.value));
+    const double alone = norms[j] > 0.0 ? noise_scale / norms[j] * per_unit
+                                        : std::numeric_limits<double>::infinity();
+    if (!(alone <= limit)) {
+      estimate.identifiable = false;
+      estimate.why_not = "the record hardly depends on it: even with every other quantity known "
+                         "its standard error would be " + Short(alone) + ", more than " +
+                         Short(options.unidentifiable_fraction) + " of its bound width " +
+                         Short(width);
+      continue;
+    }
+    for (int k = 0; k < sv.size(); ++k) {
+      if (sv(k) < options.rank_tolerance * sv(0) && std::abs(svd.matrixV()(j, k)) > 0.1) {
+        estimate.identifiable = false;
+        estimate.why_not = "the Jacobian is rank-deficient in its direction (singular value " +
+                           Short(sv(k) / sv(0)) + " of the largest): it trades off " +
+                           "against other parameters";
+      }
+    }
+    if (estimate.identifiable && !(estimate.standard_error <= limit)) {
+      estimate.identifiable = false;
+      estimate.why_not = "its standard error " + Short(estimate.standard_error) + " exceeds " +
+                         Short(options.unidentifiable_fraction) + " of its bound width " +
+                         Short(width);
+    }
+  }
+}
+
+std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,
+                                    const Eigen::MatrixXd& covariance, double best_cost,
+                                    double noise_scale, const FitOptions& options,
+                                    const std::vector<bool>& identifiable, bool* lower_found) {
+  const int p = model.parameters();
+  std::vector<double> widening(p, 1.0);
+  *lower_found = false;
+  const double step = options.profile_step;
+  const double predicted = 0.5 * step * step * noise_scale * noise_scale;
+  for (int i = 0; i < p; ++i) {
+    const double variance = covariance(i, i);
+    if (!identifiable[i] || !(variance > 0.0) || !std::isfinite(variance)) continue;
+    const Eigen::VectorXd direction = covariance.col(i).head(p) / std::sqrt(variance);
+    double flattest = std::numeric_limits<double>::infinity();
+    for (const double sign : {-1.0, 1.0}) {
+      std::vector<double> probe(u);
+      bool inside = true;
+      for (int s = 0; s < p; ++s) {
+        probe[s] += sign * step * direction(s);
+        inside = inside && probe[s] >= 0.0 && probe[s] <= 1.0;
+      }
+      // Past a bound the parameter cannot go; that side says nothing about the spread inside.
+      if (!inside) continue;
+      const double rise = model.ProjectedCost(probe.data()) - best_cost;
+      if (!std::isfinite(rise)) continue;
+      flattest = std::min(flattest, rise);
+    }
+    if (!std::isfinite(flattest)) continue;
+    if (flattest < 0.0) {
+      *lower_found = true;
+      widening[i] = std::numeric_limits<double>::infinity();
+    } else if (flattest < predicted) {
+      widening[i] = std::sqrt(predicted / std::max(flattest, 1e-12 * predicted));
+    }
+  }
+  return widening;
+}
+
+}  // namespace millkit::identify
