@@ -1,0 +1,272 @@
+// Identification over seeded random drive lines (issue 12). Not a test: it measures how the
+// default fit (what a new user runs: DefaultFitConfig, FitOptions{}) does on lines nobody tuned it
+// for, identify/random_line.h.
+//
+// For each seed: the fit from the prior, z = (estimate − truth) / standard error of every
+// parameter the fit calls identifiable, and the fit's verdict. A case is good when every such z
+// lies within 3 and the verdict is ok. Reported: the share of good cases, silent wrong answers
+// (worst |z| > 5 with verdict ok: the failure that matters most), false alarms (within 3 SE but
+// not ok), the verdicts, the RMS of z (≈ 1 when the standard errors are calibrated), the share of
+// parameters flagged not identifiable, and wall time and simulations per fit.
+//
+// Each case that is not good is fitted once more from the truth (no scan, one start, the default
+// fit's final channel weights so that the two costs compare): a lower cost there means the default
+// fit stopped in a wrong minimum; the same or a higher cost and a large |z| mean the data prefer
+// the wrong answer or the standard errors are not calibrated.
+//
+// Usage: bench_random_lines [--cases N (200)] [--first-seed S (1)] [--verbose]
+// Exits 1 when a case throws (printed, counted as crashed), else 0.
+#include <glog/logging.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <limits>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "identify/fit.h"
+#include "identify/fit_config.h"
+#include "identify/random_line.h"
+
+using namespace millkit;
+using namespace millkit::identify;
+
+namespace {
+
+constexpr double kWithin = 3.0;  // |z| of a good estimate
+constexpr double kWrong = 5.0;   // |z| of a silent wrong answer
+
+// z of every identifiable parameter and the worst of them.
+struct Scores {
+  std::vector<double> z;
+  bool finite_se = true;  // every identifiable parameter has a finite, positive standard error
+  double worst_z = 0.0;   // signed; 0 when nothing is identifiable
+  std::string worst_name;
+  int unidentifiable = 0;
+};
+
+Scores Score(const FitResult& fit, const RandomLineCase& c) {
+  Scores s;
+  for (size_t i = 0; i < fit.parameters.size() && i < c.truth_values.size(); ++i) {
+    const ParameterEstimate& p = fit.parameters[i];
+    if (p.name != c.config.free[i].parameter.name) {
+      throw std::logic_error("parameter " + p.name + " where " + c.config.free[i].parameter.name +
+                             " was expected");
+    }
+    if (!p.identifiable) {
+      ++s.unidentifiable;
+      continue;
+    }
+    const bool finite = std::isfinite(p.standard_error) && p.standard_error > 0.0;
+    s.finite_se = s.finite_se && finite;
+    const double z = finite ? (p.value - c.truth_values[i]) / p.standard_error
+                            : std::numeric_limits<double>::infinity();
+    s.z.push_back(z);
+    if (s.worst_name.empty() || std::abs(z) > std::abs(s.worst_z)) {
+      s.worst_z = z;
+      s.worst_name = p.name;
+    }
+  }
+  return s;
+}
+
+bool Within(const Scores& s) {
+  for (double z : s.z) {
+    if (!(std::abs(z) <= kWithin)) return false;
+  }
+  return true;
+}
+
+std::string Verdict(const FitSummary& summary) {
+  if (!summary.verdict.empty()) return summary.verdict;
+  return summary.success ? "ok" : "failed";
+}
+
+struct CaseResult {
+  unsigned long seed = 0;
+  std::string description;
+  std::string verdict;
+  Scores scores;
+  bool within = false;
+  double cost = 0.0;
+  double wall_s = 0.0;
+  long simulations = 0;
+  int free = 0;
+  // The fit started at the truth, for the cases that are not good.
+  double truth_cost = 0.0;
+  Scores truth_scores;
+  std::string truth_verdict;
+};
+
+// Nearest-rank quantile of a sorted sample.
+template <typename T>
+T Quantile(const std::vector<T>& sorted, double q) {
+  if (sorted.empty()) return T{};
+  const size_t rank = static_cast<size_t>(std::ceil(q * static_cast<double>(sorted.size())));
+  return sorted[std::clamp<size_t>(rank, 1, sorted.size()) - 1];
+}
+
+double Share(int part, int whole) { return whole > 0 ? 100.0 * part / whole : 0.0; }
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int cases = 200;
+  unsigned long first_seed = 1;
+  bool verbose = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string flag = argv[i];
+    if (flag == "--verbose") {
+      verbose = true;
+    } else if (flag == "--cases" && i + 1 < argc) {
+      cases = std::atoi(argv[++i]);
+    } else if (flag == "--first-seed" && i + 1 < argc) {
+      first_seed = std::strtoul(argv[++i], nullptr, 10);
+    } else {
+      std::fprintf(stderr, "usage: %s [--cases N] [--first-seed S] [--verbose]\n", argv[0]);
+      return 2;
+    }
+  }
+  FLAGS_minloglevel = 3;  // Ceres' glog: a start that fails to simulate is data, not a message
+
+  std::vector<CaseResult> results;
+  int crashed = 0;
+  for (int k = 0; k < cases; ++k) {
+    const unsigned long seed = first_seed + static_cast<unsigned long>(k);
+    try {
+      const RandomLineCase c = MakeRandomLineCase(seed);
+      CaseResult r;
+      r.seed = seed;
+      r.description = c.description;
+      r.free = static_cast<int>(c.config.free.size());
+      const auto start = std::chrono::steady_clock::now();
+      const FitResult fit = Fit(c.prior, c.record, c.config, FitOptions{});
+      r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      r.simulations = fit.summary.simulations;
+      r.cost = fit.summary.cost;
+      r.verdict = Verdict(fit.summary);
+      if (fit.summary.success) {
+        r.scores = Score(fit, c);
+        r.within = Within(r.scores);
+      } else {
+        r.scores.finite_se = false;
+        r.scores.worst_z = std::numeric_limits<double>::quiet_NaN();
+        r.scores.worst_name = "(failed: " + fit.summary.message + ")";
+      }
+      if (!(r.within && r.verdict == "ok")) {
+        FitConfig from_truth = c.config;
+        for (size_t i = 0; i < from_truth.free.size(); ++i) {
+          from_truth.free[i].start = c.truth_values[i];
+        }
+        from_truth.scan_points = 0;
+        from_truth.starts = 1;
+        // Each fit estimates its own noise weights, and a cost is only comparable in the same
+        // weights: the reference fit keeps the default fit's final ones.
+        if (fit.summary.success) {
+          for (size_t k = 0; k < from_truth.channels.size(); ++k) {
+            from_truth.channels[k].weight = fit.channels[k].weight;
+          }
+        }
+        const FitResult reference = Fit(c.prior, c.record, from_truth, FitOptions{});
+        r.truth_verdict = Verdict(reference.summary);
+        r.truth_cost = reference.summary.success ? reference.summary.cost
+                                                 : std::numeric_limits<double>::quiet_NaN();
+        if (reference.summary.success) r.truth_scores = Score(reference, c);
+      }
+      if (verbose) {
+        std::printf("seed %lu: %s, %s, worst z %+.2f (%s), cost %.6g, %.2f s, %ld simulations%s",
+                    seed, r.verdict.c_str(), r.within ? "within 3 SE" : "OUTSIDE 3 SE",
+                    r.scores.worst_z, r.scores.worst_name.c_str(), r.cost, r.wall_s, r.simulations,
+                    r.scores.unidentifiable ? ", some not identifiable" : "");
+        if (!(r.within && r.verdict == "ok")) {
+          std::printf("; from the truth: cost %.6g, worst z %+.2f (%s)", r.truth_cost,
+                      r.truth_scores.worst_z, r.truth_scores.worst_name.c_str());
+        }
+        std::printf("\n    %s\n", r.description.c_str());
+        std::fflush(stdout);
+      }
+      results.push_back(std::move(r));
+    } catch (const std::exception& e) {
+      std::printf("seed %lu CRASHED: %s\n", seed, e.what());
+      std::fflush(stdout);
+      ++crashed;
+    }
+  }
+
+  // Summary.
+  const int n = static_cast<int>(results.size());
+  int good_z = 0, silent_wrong = 0, false_alarms = 0, free = 0, unidentifiable = 0;
+  int rms_cases = 0, rms_count = 0, within_count = 0;
+  double rms_sum = 0.0, within_sum = 0.0;
+  std::map<std::string, int> verdicts;
+  std::vector<double> walls;
+  std::vector<long> sims;
+  for (const auto& r : results) {
+    const bool ok = r.verdict == "ok";
+    good_z += r.within ? 1 : 0;
+    silent_wrong += (ok && std::abs(r.scores.worst_z) > kWrong) ? 1 : 0;
+    false_alarms += (r.within && !ok) ? 1 : 0;
+    ++verdicts[r.verdict];
+    free += r.free;
+    unidentifiable += r.scores.unidentifiable;
+    if (r.scores.finite_se && !r.scores.z.empty()) {
+      ++rms_cases;
+      for (double z : r.scores.z) {
+        rms_sum += z * z;
+        ++rms_count;
+        // Without the cases outside 3 SE: the calibration of the standard errors where the fit
+        // found the right minimum, which one wrong minimum would otherwise swamp.
+        within_sum += r.within ? z * z : 0.0;
+        within_count += r.within ? 1 : 0;
+      }
+    }
+    walls.push_back(r.wall_s);
+    sims.push_back(r.simulations);
+  }
+  std::sort(walls.begin(), walls.end());
+  std::sort(sims.begin(), sims.end());
+
+  std::printf("\n## Default fit on random lines, seeds %lu–%lu\n\n", first_seed,
+              first_seed + static_cast<unsigned long>(cases) - 1);
+  std::printf("| measure | value |\n|---|---|\n");
+  std::printf("| cases | %d (%d crashed) |\n", n, crashed);
+  std::printf("| every identifiable parameter within 3 SE | %d (%.1f %%) |\n", good_z,
+              Share(good_z, n));
+  std::printf("| silent wrong answers (worst \\|z\\| > 5, verdict ok) | %d |\n", silent_wrong);
+  std::printf("| false alarms (within 3 SE, verdict not ok) | %d |\n", false_alarms);
+  for (const auto& [verdict, count] : verdicts) {
+    std::printf("| verdict %s | %d |\n", verdict.c_str(), count);
+  }
+  std::printf("| RMS z (%d estimates, %d cases with finite SE) | %.2f |\n", rms_count, rms_cases,
+              rms_count ? std::sqrt(rms_sum / rms_count) : 0.0);
+  std::printf("| RMS z, cases within 3 SE only (%d estimates) | %.2f |\n", within_count,
+              within_count ? std::sqrt(within_sum / within_count) : 0.0);
+  std::printf("| free parameters flagged not identifiable | %d of %d (%.1f %%) |\n", unidentifiable,
+              free, Share(unidentifiable, free));
+  std::printf("| wall time per fit, s: median / 95 %% / max | %.2f / %.2f / %.2f |\n",
+              Quantile(walls, 0.5), Quantile(walls, 0.95), walls.empty() ? 0.0 : walls.back());
+  std::printf("| simulations per fit: median / 95 %% | %ld / %ld |\n", Quantile(sims, 0.5),
+              Quantile(sims, 0.95));
+
+  std::printf(
+      "\nCases not (within 3 SE and ok); \"from truth\" is the same fit started at the "
+      "truth, no scan, one start:\n\n");
+  std::printf(
+      "| seed | verdict | worst parameter | z | cost | from truth: cost | from truth: worst "
+      "\\|z\\| (parameter) | line |\n|---|---|---|---|---|---|---|---|\n");
+  for (const auto& r : results) {
+    if (r.within && r.verdict == "ok") continue;
+    std::printf("| %lu | %s | %s | %+.2f | %.6g | %.6g | %.2f (%s) | %s |\n", r.seed,
+                r.verdict.c_str(), r.scores.worst_name.c_str(), r.scores.worst_z, r.cost,
+                r.truth_cost, std::abs(r.truth_scores.worst_z), r.truth_scores.worst_name.c_str(),
+                r.description.c_str());
+  }
+  std::printf("\nReproduce: bench_random_lines --cases %d --first-seed %lu --verbose\n", cases,
+              first_seed);
+  return crashed > 0 ? 1 : 0;
+}
