@@ -28,7 +28,8 @@ void FitOptions::Validate() const {
           "function_tolerance: must lie in (0, 1)");
   require(parameter_tolerance > 0.0 && parameter_tolerance < 1.0,
           "parameter_tolerance: must lie in (0, 1)");
-  require(derivative_step > 0.0 && derivative_step < 0.01, "derivative_step: must lie in (0, 0.01)");
+  require(derivative_step > 0.0 && derivative_step < 0.01,
+          "derivative_step: must lie in (0, 0.01)");
   require(threads >= 1, "threads: must be >= 1");
   require(continuation_stages >= 1 && continuation_stages <= 16,
           "continuation_stages: must lie in [1, 16]");
@@ -40,6 +41,9 @@ void FitOptions::Validate() const {
   require(rank_tolerance > 0.0 && rank_tolerance < 1.0, "rank_tolerance: must lie in (0, 1)");
   require(unidentifiable_fraction > 0.0, "unidentifiable_fraction: must be > 0");
   require(profile_step > 0.0, "profile_step: must be > 0");
+  require(profile_points >= 0, "profile_points: must be >= 0");
+  require(profile_chi2 > 0.0, "profile_chi2: must be > 0");
+  require(profile_restarts >= 0, "profile_restarts: must be >= 0");
   require(misfit_z > 0.0, "misfit_z: must be > 0");
   require(ambiguity_chi2 >= 0.0, "ambiguity_chi2: must be >= 0");
   require(distinct_minimum_se > 0.0, "distinct_minimum_se: must be > 0");
@@ -48,9 +52,9 @@ void FitOptions::Validate() const {
 std::string FitSummary::BriefReport() const {
   std::ostringstream out;
   out << "fit: " << (success ? verdict : "FAILED") << ", cost " << cost << ", " << iterations
-      << " iterations, " << starts_at_best << "/" << starts
-      << " starts reach the best minimum (" << scan_points << " scan points), " << simulations
-      << " simulations, " << wall_time_s << " s, noise scale " << noise_scale;
+      << " iterations, " << starts_at_best << "/" << starts << " starts reach the best minimum ("
+      << scan_points << " scan points), " << simulations << " simulations, " << wall_time_s
+      << " s, noise scale " << noise_scale;
   if (!success) out << ": " << message;
   return out.str();
 }
@@ -93,7 +97,8 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record,
       FirstOrderLowPass(channels[c].lowpass_Hz, times, &signal);
       auto& out = (*torques)[c];
       out.resize(end - begin);
-      for (int k = begin; k < end; ++k) out(k - begin) = signal[static_cast<size_t>(k - first) * stride];
+      for (int k = begin; k < end; ++k)
+        out(k - begin) = signal[static_cast<size_t>(k - first) * stride];
       if (!out.allFinite()) {
         *why = "non-finite torque";
         return false;
@@ -307,15 +312,39 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   const auto starts = ScanStarts(model, config, options, start, &summary.scan_points);
   std::vector<LocalFit> minima = RefineStarts(&model, options, starts);
   summary.starts = static_cast<int>(starts.size());
-  int best = -1;
-  for (int k = 0; k < static_cast<int>(minima.size()); ++k) {
-    if (minima[k].usable && (best < 0 || minima[k].cost < minima[best].cost)) best = k;
-  }
+  const auto lowest = [&minima] {
+    int best = -1;
+    for (int k = 0; k < static_cast<int>(minima.size()); ++k) {
+      if (minima[k].usable && (best < 0 || minima[k].cost < minima[best].cost)) best = k;
+    }
+    return best;
+  };
+  int best = lowest();
   if (best < 0) {
     summary.message = "no start converged to a usable solution";
-    if (!model.last_failure().empty()) summary.message += " (last failure: " + model.last_failure() + ")";
+    if (!model.last_failure().empty())
+      summary.message += " (last failure: " + model.last_failure() + ")";
     summary.simulations = model.simulations();
     return result;
+  }
+  // A coarse look along every parameter's axis from the best minimum; a probe below it is a
+  // valley the starts missed: Levenberg–Marquardt goes on from there.
+  std::vector<ProfileProbe> probes = ProfileProbes(model, minima[best].u, options);
+  for (int restart = 0; restart < options.profile_restarts; ++restart) {
+    const ProfileProbe* lower = nullptr;
+    for (const auto& probe : probes) {
+      if (probe.cost < minima[best].cost && (lower == nullptr || probe.cost < lower->cost)) {
+        lower = &probe;
+      }
+    }
+    if (lower == nullptr) break;
+    LocalFit fit = Refine(model, options, lower->u, true, options.max_iterations);
+    fit.start = -1;
+    minima.push_back(std::move(fit));
+    const int previous = best;
+    best = lowest();
+    if (best == previous) break;
+    probes = ProfileProbes(model, minima[best].u, options);
   }
   const std::vector<double>& u = minima[best].u;
 
@@ -340,13 +369,13 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   bool lower_found = false;
   const auto widening =
       ProfileWidening(model, u, covariance, summary.cost, summary.noise_scale, options,
-                      std::vector<bool>(model.parameters(), true), &lower_found);
+                      std::vector<bool>(model.parameters(), true), probes, &lower_found);
   std::vector<std::string> widened;
   for (int i = 0; i < model.parameters(); ++i) {
     if (widening[i] > 1.0 && std::isfinite(widening[i])) {
       covariance.row(i) *= widening[i];
       covariance.col(i) *= widening[i];
-      widened.push_back(model.slot(i).name + " x" + Short(widening[i]));
+      if (widening[i] > 1.05) widened.push_back(model.slot(i).name + " x" + Short(widening[i]));
     }
   }
 
@@ -365,12 +394,13 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
     result.parameters.push_back(e);
   }
   FlagUnidentifiable(model, jac, fitted, summary.noise_scale, options, &result);
+  FlagPlateaus(model, probes, &result);
   FillChannels(model, m, nuisance, assessment.noise, &result);
   for (int b = 0; b < model.blocks(); ++b) {
     auto& c = result.channels[b];
     c.gain_se = std::sqrt(covariance(model.gain_index(b), model.gain_index(b)));
-    c.offset_se = std::sqrt(covariance(model.offset_index(b), model.offset_index(b))) *
-                  model.block(b).scale;
+    c.offset_se =
+        std::sqrt(covariance(model.offset_index(b), model.offset_index(b))) * model.block(b).scale;
   }
   for (const int j : fitted) {
     if (j < model.parameters()) {
@@ -383,9 +413,9 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   result.correlation.resize(fitted.size(), fitted.size());
   for (size_t a = 0; a < fitted.size(); ++a) {
     for (size_t b = 0; b < fitted.size(); ++b) {
-      result.correlation(a, b) = covariance(fitted[a], fitted[b]) /
-                                 std::sqrt(covariance(fitted[a], fitted[a]) *
-                                           covariance(fitted[b], fitted[b]));
+      result.correlation(a, b) =
+          covariance(fitted[a], fitted[b]) /
+          std::sqrt(covariance(fitted[a], fitted[a]) * covariance(fitted[b], fitted[b]));
     }
   }
 
@@ -453,8 +483,10 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   if (!widened.empty()) {
     std::string list;
     for (const auto& w : widened) list += (list.empty() ? "" : ", ") + w;
-    summary.warnings.push_back("standard errors widened where the cost is flatter than its "
-                               "linearisation: " + list);
+    summary.warnings.push_back(
+        "standard errors widened where the cost is flatter than its "
+        "linearisation: " +
+        list);
   }
   summary.simulations = model.simulations();
   summary.wall_time_s = elapsed();

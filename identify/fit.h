@@ -29,17 +29,18 @@
 //   degenerate     the record cannot support the fit (a value that is not a torque, a flat or
 //                  dead channel, fewer samples after the response starts than fitted quantities);
 //   not_converged  Levenberg–Marquardt did not converge at the best minimum;
-//   misfit         some channel's residual variance exceeds its noise variance beyond the
-//                  one-sided level misfit_z (log-ratio test, both variances' degrees of freedom);
+//   misfit         some channel's residual is not its noise, at the one-sided level misfit_z:
+//                  its variance exceeds the noise variance (log-ratio test, both variances'
+//                  degrees of freedom), or its autocorrelation over up to 20 lags differs from
+//                  the quiet stretch's (portmanteau test, Wilson–Hilferty normal z);
 //   ambiguous      another local minimum, more than distinct_minimum_se standard errors away in
 //                  some identifiable parameter, has a χ² within ambiguity_chi2 of the best;
 //   ok             otherwise (parameters flagged not identifiable are still ok).
 #pragma once
 
+#include <Eigen/Dense>
 #include <string>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "driveline/scene.h"
 #include "identify/fit_config.h"
@@ -55,8 +56,8 @@ inline constexpr int kFilterOversample = 4;
 struct FitOptions {
   // Levenberg–Marquardt at the final stage.
   int max_iterations = 100;
-  double function_tolerance = 1e-12;
-  double parameter_tolerance = 1e-10;
+  double function_tolerance = 1e-9;
+  double parameter_tolerance = 1e-8;
   double derivative_step = 1e-6;  // in unit coordinates (fraction of the bound range)
   // Central instead of forward differences while iterating (the covariance always uses central).
   bool central_differences = false;
@@ -80,8 +81,14 @@ struct FitOptions {
   // unidentifiable_fraction of its bound width.
   double rank_tolerance = 1e-7;
   double unidentifiable_fraction = 0.25;
-  // The profile check of the standard errors probes ± profile_step standard errors.
+  // The profile check of the standard errors probes ± profile_step standard errors, and each
+  // parameter's axis at profile_points points; an axis probe within profile_chi2 of the best χ²
+  // widens the standard error (identify/uncertainty.h). A probe below the best cost restarts
+  // Levenberg–Marquardt from it, up to profile_restarts times.
   double profile_step = 2.0;
+  int profile_points = 8;
+  double profile_chi2 = 25.0;
+  int profile_restarts = 2;
 
   // Verdict levels (see above).
   double misfit_z = 3.0;
@@ -116,21 +123,22 @@ struct ChannelEstimate {
   double gain_se = 0.0;
   double offset = 0.0;  // N·m
   double offset_se = 0.0;
-  double weight = 0.0;  // 1/N·m, as used in the fit
-  double noise = 0.0;   // N·m, the channel's noise measured on the record
+  double weight = 0.0;       // 1/N·m, as used in the fit
+  double noise = 0.0;        // N·m, the channel's noise measured on the record
   std::string noise_source;  // "quiet stretch (m samples)" or "second differences"
   double chi2_ratio = 0.0;   // residual variance / noise variance
+  double whiteness_z = 0.0;  // the residual's autocorrelation against the noise's, as a normal z
   bool gain_at_bound = false;
   bool offset_at_bound = false;
   double rms_residual = 0.0;  // N·m
   int samples = 0;
-  std::vector<double> time_s;   // the window samples' times (s)
-  std::vector<double> fitted;   // g·m + o at the window samples
+  std::vector<double> time_s;  // the window samples' times (s)
+  std::vector<double> fitted;  // g·m + o at the window samples
   std::vector<double> measured;
 };
 
 struct LocalMinimum {
-  double cost = 0.0;           // the fixed-weight cost: every minimum on the same scale
+  double cost = 0.0;  // the fixed-weight cost: every minimum on the same scale
   int start = 0;
   std::vector<double> values;  // free scene parameters, physical units
   int iterations = 0;
@@ -143,15 +151,15 @@ struct FitSummary {
   std::string verdict;
   std::vector<std::string> warnings;  // reasons for the verdict and other doubts, in words
   std::string message;
-  std::string ceres_brief;   // ceres::Solver::Summary::BriefReport() of the final fit
+  std::string ceres_brief;  // ceres::Solver::Summary::BriefReport() of the final fit
   std::string termination;
   int iterations = 0;
   int scan_points = 0;
   int starts = 0;
-  int starts_at_best = 0;    // starts whose fits reach the best minimum (same point)
+  int starts_at_best = 0;  // starts whose fits reach the best minimum (same point)
   long simulations = 0;
   double wall_time_s = 0.0;
-  double cost = 0.0;         // ½ Σ weighted residual²
+  double cost = 0.0;  // ½ Σ weighted residual²
   int residuals = 0;
   int fitted_quantities = 0;
   double noise_scale = 1.0;  // sqrt(2 cost / (N − P)); ≈ 1 when the noise estimates are right
@@ -161,10 +169,10 @@ struct FitSummary {
 
 struct FitResult {
   std::vector<ParameterEstimate> parameters;
-  std::vector<ChannelEstimate> channels;    // record by record, channels in config order
+  std::vector<ChannelEstimate> channels;  // record by record, channels in config order
   // Parameters, then gain.<col>, offset.<col> (with @<record label> when there are several).
   std::vector<std::string> quantity_names;
-  Eigen::MatrixXd correlation;              // over quantity_names
+  Eigen::MatrixXd correlation;  // over quantity_names
   std::vector<LocalMinimum> minima;
   FitSummary summary;
 };

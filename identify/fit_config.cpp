@@ -23,8 +23,8 @@ void CheckFreeParameter(const FreeParameter& p, const std::string& where) {
     throw InputError(where + ": '" + p.parameter.name + "': start and bounds must be finite");
   }
   if (!(p.lower < p.upper)) {
-    throw InputError(where + ": '" + p.parameter.name + "': lower bound " +
-                     FormatNumber(p.lower) + " must be below upper bound " + FormatNumber(p.upper));
+    throw InputError(where + ": '" + p.parameter.name + "': lower bound " + FormatNumber(p.lower) +
+                     " must be below upper bound " + FormatNumber(p.upper));
   }
   if (p.start < p.lower || p.start > p.upper) {
     throw InputError(where + ": '" + p.parameter.name + "': start " + FormatNumber(p.start) +
@@ -155,8 +155,8 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
         }
       }
     }
-    config.scan_points = static_cast<int>(fit->Integer("scan", 32, 0, 100000));
-    config.starts = static_cast<int>(fit->Integer("starts", 2, 1, 10000));
+    config.scan_points = static_cast<int>(fit->Integer("scan", kDefaultScanPoints, 0, 100000));
+    config.starts = static_cast<int>(fit->Integer("starts", kDefaultStarts, 1, 10000));
     config.seed = static_cast<unsigned>(fit->Integer("seed", 1, 0, 4294967295L));
   }
   if (const auto set = top.OptionalTable("set")) {
@@ -167,8 +167,8 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
       const auto range = driveline::PhysicalRange(parameter.kind);
       if (value < range.lower || value > range.upper ||
           (!range.lower_inclusive && value == range.lower)) {
-        set->Fail(name, "value " + FormatNumber(value) + " is outside the physical range of " +
-                            name);
+        set->Fail(name,
+                  "value " + FormatNumber(value) + " is outside the physical range of " + name);
       }
       parameter.Set(value, scene);
     }
@@ -204,14 +204,15 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
     c.link = section.String("link", c.column);
     c.link_index = scene->LinkIndex(c.link);
     if (c.link_index < 0) section.Fail("link", "no link named '" + c.link + "' in the scene");
-    if (section.Has("weight")) c.weight = section.Positive("weight", section.RequiredNumber("weight"));
+    if (section.Has("weight"))
+      c.weight = section.Positive("weight", section.RequiredNumber("weight"));
     c.fit_gain = section.Bool("gain", true);
     c.fit_offset = section.Bool("offset", true);
     c.lowpass_Hz = section.NonNegative("lowpass", section.Number("lowpass", 0.0));
     if (section.Has("gain_bounds")) {
       const auto bounds = section.NumberArray("gain_bounds");
-      if (bounds.size() != 2 || !(bounds[0] > 0.0 && bounds[0] <= 1.0 && bounds[1] >= 1.0 &&
-                                  std::isfinite(bounds[1]))) {
+      if (bounds.size() != 2 ||
+          !(bounds[0] > 0.0 && bounds[0] <= 1.0 && bounds[1] >= 1.0 && std::isfinite(bounds[1]))) {
         section.Fail("gain_bounds", "must be [lower, upper] with 0 < lower <= 1 <= upper");
       }
       c.gain_lower = bounds[0];

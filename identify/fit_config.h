@@ -43,6 +43,10 @@
 
 namespace millkit::identify {
 
+// The scan's defaults, set by the random-lines benchmark (bench/identify/bench_random_lines.cpp).
+inline constexpr int kDefaultScanPoints = 128;
+inline constexpr int kDefaultStarts = 4;
+
 struct FreeParameter {
   driveline::SceneParameter parameter;
   double start = 0.0;
@@ -55,7 +59,7 @@ struct FreeParameter {
 struct ChannelSpec {
   std::string column;
   std::string link;
-  int link_index = -1;      // scene link
+  int link_index = -1;           // scene link
   std::optional<double> weight;  // none: 1/noise measured on the record (record_noise.h)
   bool fit_gain = true;
   bool fit_offset = true;
@@ -70,8 +74,8 @@ struct FitConfig {
   std::vector<ChannelSpec> channels;
   double window_start_s = 0.0;
   double window_end_s = 0.0;
-  int scan_points = 32;
-  int starts = 2;
+  int scan_points = kDefaultScanPoints;
+  int starts = kDefaultStarts;
   unsigned seed = 1;
 };
 

@@ -87,7 +87,8 @@ double FitModel::OnsetTime(int r) const {
     const auto& y = record.values[b.column];
     const double initial = y[b.begin];
     double excursion = 0.0;
-    for (int k = b.begin; k < b.full_end; ++k) excursion = std::max(excursion, std::abs(y[k] - initial));
+    for (int k = b.begin; k < b.full_end; ++k)
+      excursion = std::max(excursion, std::abs(y[k] - initial));
     for (int k = b.begin; k < b.full_end; ++k) {
       if (std::abs(y[k] - initial) > 0.2 * excursion) {
         onset = std::min(onset, record.time_s[k]);
@@ -153,12 +154,16 @@ Nuisance FitModel::SolveNuisance(int b, const Eigen::VectorXd& m) const {
   const auto cost = [&](double g, double o) {
     return -2.0 * g * sym - 2.0 * o * sy + g * g * smm + 2.0 * g * o * sm + n * o * o;
   };
-  const auto clamp_gain = [&](double g) { return std::clamp(g, block.gain_lower, block.gain_upper); };
+  const auto clamp_gain = [&](double g) {
+    return std::clamp(g, block.gain_lower, block.gain_upper);
+  };
   const auto clamp_offset = [&](double o) {
     return std::clamp(o, block.offset_lower_Nm, block.offset_upper_Nm);
   };
   // Best gain for a given offset, and best offset for a given gain (each clamped).
-  const auto gain_for = [&](double o) { return smm > 0.0 ? clamp_gain((sym - o * sm) / smm) : 1.0; };
+  const auto gain_for = [&](double o) {
+    return smm > 0.0 ? clamp_gain((sym - o * sm) / smm) : 1.0;
+  };
   const auto offset_for = [&](double g) { return clamp_offset((sy - g * sm) / n); };
   Nuisance best;
   if (spec.fit_gain && spec.fit_offset) {
@@ -175,7 +180,8 @@ Nuisance FitModel::SolveNuisance(int b, const Eigen::VectorXd& m) const {
       }
     }
     if (candidates.empty()) {
-      for (const double g : {block.gain_lower, block.gain_upper}) candidates.emplace_back(g, offset_for(g));
+      for (const double g : {block.gain_lower, block.gain_upper})
+        candidates.emplace_back(g, offset_for(g));
       for (const double o : {block.offset_lower_Nm, block.offset_upper_Nm}) {
         candidates.emplace_back(gain_for(o), o);
       }
@@ -198,8 +204,8 @@ Nuisance FitModel::SolveNuisance(int b, const Eigen::VectorXd& m) const {
   const auto near = [](double v, double bound) {
     return std::abs(v - bound) <= 1e-12 * std::max(1.0, std::abs(bound));
   };
-  best.gain_at_bound = spec.fit_gain && (near(best.gain, block.gain_lower) ||
-                                         near(best.gain, block.gain_upper));
+  best.gain_at_bound =
+      spec.fit_gain && (near(best.gain, block.gain_lower) || near(best.gain, block.gain_upper));
   best.offset_at_bound = spec.fit_offset && (near(best.offset_Nm, block.offset_lower_Nm) ||
                                              near(best.offset_Nm, block.offset_upper_Nm));
   return best;
@@ -274,8 +280,10 @@ bool FitModel::FullJacobian(const std::vector<double>& u, const std::vector<Nuis
     // Central where both neighbours are inside [0, 1] and simulate; else second-order one-sided
     // on the side that does.
     int kind = 0;  // 0 central, +1 forward, −1 backward
-    if (u0 - h < 0.0) kind = +1;
-    else if (u0 + h > 1.0) kind = -1;
+    if (u0 - h < 0.0)
+      kind = +1;
+    else if (u0 + h > 1.0)
+      kind = -1;
     bool done = false;
     if (kind == 0) {
       const bool up = simulate(u0 + h, &m1);

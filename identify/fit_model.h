@@ -15,11 +15,11 @@
 // covariance uses the full θ (FullJacobian).
 #pragma once
 
-#include <string>
-#include <vector>
+#include <ceres/ceres.h>
 
 #include <Eigen/Dense>
-#include <ceres/ceres.h>
+#include <string>
+#include <vector>
 
 #include "driveline/scene.h"
 #include "identify/fit_config.h"
@@ -133,8 +133,7 @@ class FitModel {
 // per-record slot re-simulates only its record. Frozen slots keep a zero column, unsimulated.
 class ProjectedResidual : public ceres::CostFunction {
  public:
-  ProjectedResidual(const FitModel& model, double step, bool central,
-                    std::vector<int> frozen = {});
+  ProjectedResidual(const FitModel& model, double step, bool central, std::vector<int> frozen = {});
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
 

@@ -1,7 +1,6 @@
 #include "identify/fit_report.h"
 
 #include <cmath>
-
 #include <nlohmann/json.hpp>
 
 #include "io/svg_plot.h"
@@ -40,10 +39,15 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
   json parameters = json::array();
   json not_identifiable = json::array();
   for (const auto& p : result.parameters) {
-    json item = {{"name", p.name},   {"unit", p.unit},         {"value", Number(p.value)},
+    json item = {{"name", p.name},
+                 {"unit", p.unit},
+                 {"value", Number(p.value)},
                  {"standard_error", Number(p.identifiable ? p.standard_error : NAN)},
-                 {"start", p.start}, {"lower", p.lower},       {"upper", p.upper},
-                 {"at_bound", p.at_bound}, {"identifiable", p.identifiable}};
+                 {"start", p.start},
+                 {"lower", p.lower},
+                 {"upper", p.upper},
+                 {"at_bound", p.at_bound},
+                 {"identifiable", p.identifiable}};
     if (!p.record.empty()) item["record"] = p.record;
     if (!p.identifiable) {
       item["why_not"] = p.why_not;
@@ -66,6 +70,7 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
                         {"noise_Nm", Number(c.noise)},
                         {"noise_source", c.noise_source},
                         {"residual_to_noise_variance", Number(c.chi2_ratio)},
+                        {"residual_whiteness_z", Number(c.whiteness_z)},
                         {"gain_at_bound", c.gain_at_bound},
                         {"offset_at_bound", c.offset_at_bound},
                         {"rms_residual_Nm", Number(c.rms_residual)},
@@ -75,7 +80,8 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
   json matrix = json::array();
   for (int i = 0; i < result.correlation.rows(); ++i) {
     json row = json::array();
-    for (int j = 0; j < result.correlation.cols(); ++j) row.push_back(Number(result.correlation(i, j)));
+    for (int j = 0; j < result.correlation.cols(); ++j)
+      row.push_back(Number(result.correlation(i, j)));
     matrix.push_back(row);
   }
   doc["correlation"] = {{"names", result.quantity_names}, {"matrix", matrix}};
@@ -104,9 +110,10 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
                     {"residuals", s.residuals},
                     {"fitted_quantities", s.fitted_quantities},
                     {"noise_scale", Number(s.noise_scale)},
-                    {"standard_errors", "scaled by noise_scale^2 (the residual's variance over "
-                                        "the record's noise); widened where the cost's profile "
-                                        "is flatter than its linearisation"},
+                    {"standard_errors",
+                     "scaled by noise_scale^2 (the residual's variance over "
+                     "the record's noise); widened where the cost's profile "
+                     "is flatter than its linearisation"},
                     {"reciprocal_condition", Number(s.reciprocal_condition)}};
   return doc.dump(2) + "\n";
 }
@@ -159,8 +166,8 @@ std::string FitPlotSvg(const FitResult& result, const std::string& title) {
     torque.series.push_back({"measured", c.time_s, c.measured, PlotSeries::Style::kMarkers});
     torque.series.push_back({"fitted", c.time_s, c.fitted, PlotSeries::Style::kLine});
     PlotPanel residual;
-    residual.title = name + ": residual (fitted - measured), rms " +
-                     std::to_string(c.rms_residual) + " N*m";
+    residual.title =
+        name + ": residual (fitted - measured), rms " + std::to_string(c.rms_residual) + " N*m";
     residual.x_title = "time, s";
     residual.y_title = "residual, N*m";
     std::vector<double> r(c.fitted.size());

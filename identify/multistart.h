@@ -3,10 +3,10 @@
 // on the whole window. Every local minimum is kept: the verdict compares them.
 #pragma once
 
+#include <ceres/ceres.h>
+
 #include <limits>
 #include <vector>
-
-#include <ceres/ceres.h>
 
 #include "identify/fit.h"
 #include "identify/fit_model.h"
@@ -14,7 +14,7 @@
 namespace millkit::identify {
 
 struct LocalFit {
-  std::vector<double> u;  // scene parameters, unit coordinates
+  std::vector<double> u;                                  // scene parameters, unit coordinates
   double cost = std::numeric_limits<double>::infinity();  // projected, whole window
   ceres::Solver::Summary summary;
   bool usable = false;

@@ -28,8 +28,7 @@ Oscillogram FromTable(const CsvTable& table) {
   for (size_t j = 1; j < table.columns.size(); ++j) {
     if (std::find(record.channels.begin(), record.channels.end(), table.columns[j]) !=
         record.channels.end()) {
-      throw InputError(table.source + ": line 1: column '" + table.columns[j] +
-                       "' appears twice");
+      throw InputError(table.source + ": line 1: column '" + table.columns[j] + "' appears twice");
     }
     record.channels.push_back(table.columns[j]);
     record.values.push_back(table.ColumnValues(static_cast<int>(j)));

@@ -9,7 +9,7 @@
 namespace millkit::identify {
 
 struct Oscillogram {
-  std::string source;                       // file name, for messages
+  std::string source;  // file name, for messages
   std::vector<double> time_s;
   std::vector<std::string> channels;        // column names after `time`
   std::vector<std::vector<double>> values;  // values[channel][sample]

@@ -24,12 +24,10 @@ inline constexpr double kLogSpan = 4.0;
 class ParameterMap {
  public:
   ParameterMap() = default;
-  explicit ParameterMap(const FreeParameter& free)
-      : lower_(free.lower), upper_(free.upper) {
+  explicit ParameterMap(const FreeParameter& free) : lower_(free.lower), upper_(free.upper) {
     using Kind = driveline::SceneParameter::Kind;
     const auto kind = free.parameter.kind;
-    const bool scale =
-        kind == Kind::kDamping || kind == Kind::kStiffness || kind == Kind::kInertia;
+    const bool scale = kind == Kind::kDamping || kind == Kind::kStiffness || kind == Kind::kInertia;
     log_ = scale && lower_ > 0.0 && upper_ >= kLogSpan * lower_;
     if (log_) log_span_ = std::log(upper_ / lower_);
   }

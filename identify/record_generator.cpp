@@ -43,8 +43,7 @@ RecordSpec LoadRecordSpec(const std::string& path, driveline::Scene* scene) {
     d.bits = static_cast<int>(record->Integer("bits", 0, 0, 24));
     d.full_scale = record->InRange("full_scale", record->Number("full_scale", 1.5), 1.0, 100.0);
     d.lowpass_Hz = record->NonNegative("lowpass", record->Number("lowpass", 0.0));
-    d.oversample =
-        static_cast<int>(record->Integer("oversample", 16, 1, 1000));
+    d.oversample = static_cast<int>(record->Integer("oversample", 16, 1, 1000));
     d.seed = static_cast<unsigned long>(record->NonNegative("seed", record->Number("seed", 1)));
   } else {
     top.Fail("record", "is required ([record] with sample_rate)");

@@ -30,6 +30,23 @@ std::string Short(double value) {
 
 }  // namespace
 
+std::vector<double> Autocorrelation(const std::vector<double>& x, int lags) {
+  const int n = static_cast<int>(x.size());
+  double mean = 0.0;
+  for (const double v : x) mean += v;
+  mean /= std::max(1, n);
+  double variance = 0.0;
+  for (const double v : x) variance += (v - mean) * (v - mean);
+  std::vector<double> rho(std::max(0, lags), 0.0);
+  if (!(variance > 0.0)) return rho;
+  for (int lag = 1; lag <= lags && lag < n; ++lag) {
+    double sum = 0.0;
+    for (int k = lag; k < n; ++k) sum += (x[k] - mean) * (x[k - lag] - mean);
+    rho[lag - 1] = sum / variance;
+  }
+  return rho;
+}
+
 int QuietStretchEnd(const Oscillogram& record, const std::vector<int>& columns) {
   const int n = static_cast<int>(record.time_s.size());
   int onset = n;
@@ -71,17 +88,21 @@ ChannelNoise EstimateChannelNoise(const Oscillogram& record, int column, int qui
     }
     const double slope = stt > 0.0 ? sty / stt : 0.0;
     double sum = 0.0;
+    std::vector<double> detrended(m);
     for (int k = 0; k < m; ++k) {
       const double r = y[k] - ym - slope * (t[k] - tm);
+      detrended[k] = r;
       sum += r * r;
     }
+    noise.autocorrelation = Autocorrelation(detrended, std::min(kMaxCorrelationLags, m / 4));
     noise.sigma_Nm = std::sqrt(sum / (m - 2));
     noise.dof = m - 2;
     noise.from_quiet_stretch = true;
     noise.quiet_samples = m;
   } else {
     std::vector<double> second;
-    for (int k = begin + 2; k < end; ++k) second.push_back(std::abs(y[k] - 2.0 * y[k - 1] + y[k - 2]));
+    for (int k = begin + 2; k < end; ++k)
+      second.push_back(std::abs(y[k] - 2.0 * y[k - 1] + y[k - 2]));
     noise.sigma_Nm = 1.4826 * Median(second) / std::sqrt(6.0);
     // The median's efficiency for Gaussian data is 2/π.
     noise.dof = 0.637 * static_cast<double>(second.size());

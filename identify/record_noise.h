@@ -31,9 +31,17 @@ inline constexpr double kNoiseFloorFraction = 1e-6;
 // A torque beyond this is not a measurement (N·m; the largest mill drives carry ~1e7).
 inline constexpr double kAbsurdTorque_Nm = 1e12;
 
+// Lags of the autocorrelation kept for the residual's whiteness test (at most a quarter of the
+// quiet stretch).
+inline constexpr int kMaxCorrelationLags = 20;
+
 struct ChannelNoise {
   double sigma_Nm = 0.0;
-  double dof = 0.0;       // degrees of freedom of σ² (for the residual test)
+  // Autocorrelation of the detrended quiet stretch at lags 1, 2, …: what the noise itself looks
+  // like (an anti-alias filter colours it), for the residual to be compared with. Empty for the
+  // fallback.
+  std::vector<double> autocorrelation;
+  double dof = 0.0;  // degrees of freedom of σ² (for the residual test)
   bool from_quiet_stretch = false;
   int quiet_samples = 0;  // samples of the quiet stretch (0 for the fallback)
 };
@@ -45,6 +53,9 @@ int QuietStretchEnd(const Oscillogram& record, const std::vector<int>& columns);
 // Noise of one column; [begin, end) is the fit window (for the fallback).
 ChannelNoise EstimateChannelNoise(const Oscillogram& record, int column, int quiet_end, int begin,
                                   int end);
+
+// Sample autocorrelation of x (mean removed) at lags 1 … lags.
+std::vector<double> Autocorrelation(const std::vector<double>& x, int lags);
 
 // Why a column in [begin, end) cannot support a fit, or empty: values too large to be a torque,
 // a flat (dead) channel. `sigma` is its noise estimate.

@@ -79,10 +79,11 @@ void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
                                         : std::numeric_limits<double>::infinity();
     if (!(alone <= limit)) {
       estimate.identifiable = false;
-      estimate.why_not = "the record hardly depends on it: even with every other quantity known "
-                         "its standard error would be " + Short(alone) + ", more than " +
-                         Short(options.unidentifiable_fraction) + " of its bound width " +
-                         Short(width);
+      estimate.why_not =
+          "the record hardly depends on it: even with every other quantity known "
+          "its standard error would be " +
+          Short(alone) + ", more than " + Short(options.unidentifiable_fraction) +
+          " of its bound width " + Short(width);
       continue;
     }
     for (int k = 0; k < sv.size(); ++k) {
@@ -102,10 +103,25 @@ void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
   }
 }
 
+std::vector<ProfileProbe> ProfileProbes(const FitModel& model, const std::vector<double>& u,
+                                        const FitOptions& options) {
+  std::vector<ProfileProbe> probes;
+  for (int s = 0; s < model.parameters(); ++s) {
+    for (int k = 0; k < options.profile_points; ++k) {
+      ProfileProbe probe{s, u, 0.0};
+      probe.u[s] = (k + 0.5) / options.profile_points;
+      probe.cost = model.ProjectedCost(probe.u.data());
+      if (std::isfinite(probe.cost)) probes.push_back(std::move(probe));
+    }
+  }
+  return probes;
+}
+
 std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,
                                     const Eigen::MatrixXd& covariance, double best_cost,
                                     double noise_scale, const FitOptions& options,
-                                    const std::vector<bool>& identifiable, bool* lower_found) {
+                                    const std::vector<bool>& identifiable,
+                                    const std::vector<ProfileProbe>& probes, bool* lower_found) {
   const int p = model.parameters();
   std::vector<double> widening(p, 1.0);
   *lower_found = false;
@@ -129,15 +145,71 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
       if (!std::isfinite(rise)) continue;
       flattest = std::min(flattest, rise);
     }
-    if (!std::isfinite(flattest)) continue;
     if (flattest < 0.0) {
       *lower_found = true;
       widening[i] = std::numeric_limits<double>::infinity();
-    } else if (flattest < predicted) {
+      continue;
+    }
+    if (std::isfinite(flattest) && flattest < predicted) {
       widening[i] = std::sqrt(predicted / std::max(flattest, 1e-12 * predicted));
+    }
+    // The axis probes, in physical units (a log-scaled parameter's spread is not symmetric in u).
+    const double per_unit = model.slot(i).map.PhysicalPerUnit(u[i]);
+    const double standard_error = std::sqrt(variance) * per_unit;
+    const double estimate = model.Physical(i, u[i]);
+    for (const auto& probe : probes) {
+      if (probe.slot != i) continue;
+      const double chi2 = 2.0 * (probe.cost - best_cost) / (noise_scale * noise_scale);
+      if (chi2 < 0.0) {
+        *lower_found = true;
+        continue;
+      }
+      if (!(chi2 < options.profile_chi2)) continue;
+      const double implied =
+          std::abs(model.Physical(i, probe.u[i]) - estimate) / std::sqrt(std::max(chi2, 1e-12));
+      widening[i] = std::max(widening[i], implied / standard_error);
     }
   }
   return widening;
+}
+
+void FlagPlateaus(const FitModel& model, const std::vector<ProfileProbe>& probes,
+                  FitResult* result) {
+  for (int i = 0; i < model.parameters(); ++i) {
+    auto& estimate = result->parameters[i];
+    if (!estimate.identifiable) continue;
+    std::vector<const ProfileProbe*> axis;
+    for (const auto& probe : probes) {
+      if (probe.slot == i) axis.push_back(&probe);
+    }
+    // Neighbouring probes with the same cost to 1e-10: the simulated record does not change
+    // between them.
+    double low = std::numeric_limits<double>::infinity();
+    double high = -low;
+    for (size_t k = 1; k < axis.size(); ++k) {
+      const double a = axis[k - 1]->cost;
+      const double b = axis[k]->cost;
+      if (std::abs(a - b) <= 1e-10 * std::abs(a)) {
+        low = std::min(low, model.Physical(i, axis[k - 1]->u[i]));
+        high = std::max(high, model.Physical(i, axis[k]->u[i]));
+      }
+    }
+    if (!(low < high)) continue;
+    const double se = estimate.standard_error;
+    const double distance =
+        std::min(std::abs(low - estimate.value), std::abs(high - estimate.value));
+    if (estimate.value >= low && estimate.value <= high) {
+      estimate.identifiable = false;
+      estimate.why_not = "the record is the same for every value in [" + Short(low) + ", " +
+                         Short(high) + "] " + estimate.unit;
+    } else if (!(distance <= 3.0 * se)) {
+      estimate.identifiable = false;
+      estimate.why_not = "the record is the same for every value in [" + Short(low) + ", " +
+                         Short(high) + "] " + estimate.unit + " (a plateau of the cost " +
+                         Short(distance / se) + " standard errors away): the record bounds it " +
+                         "from one side only";
+    }
+  }
 }
 
 }  // namespace millkit::identify

@@ -1,9 +1,8 @@
 // Standard errors, correlations and identifiability of a fit (identify/ internal).
 #pragma once
 
-#include <vector>
-
 #include <Eigen/Dense>
+#include <vector>
 
 #include "identify/fit.h"
 #include "identify/fit_model.h"
@@ -27,6 +26,18 @@ void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
                         const std::vector<int>& fitted, double noise_scale,
                         const FitOptions& options, FitResult* result);
 
+// The projected cost along each scene parameter's own axis (the others held) at
+// options.profile_points unit coordinates spread evenly over its bounds ((k + ½)/points): a
+// coarse global look at each parameter, which finds plateaus and lower valleys that the local
+// linearisation cannot see.
+struct ProfileProbe {
+  int slot = 0;
+  std::vector<double> u;
+  double cost = 0.0;
+};
+std::vector<ProfileProbe> ProfileProbes(const FitModel& model, const std::vector<double>& u,
+                                        const FitOptions& options);
+
 // The profile check: for each identifiable scene parameter i, θ moves along its profile
 // direction C e_i / √C_ii by ± profile_step (in standard errors); the linearisation predicts the
 // cost to rise by ½ step² noise_scale². Where the actual projected cost rises less on either side,
@@ -37,6 +48,13 @@ void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
 std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,
                                     const Eigen::MatrixXd& covariance, double best_cost,
                                     double noise_scale, const FitOptions& options,
-                                    const std::vector<bool>& identifiable, bool* lower_found);
+                                    const std::vector<bool>& identifiable,
+                                    const std::vector<ProfileProbe>& probes, bool* lower_found);
+
+// Flags a parameter not identifiable where neighbouring axis probes have the same cost: the
+// record does not change over that range (a gap that never closes there), so the local standard
+// error describes only one side.
+void FlagPlateaus(const FitModel& model, const std::vector<ProfileProbe>& probes,
+                  FitResult* result);
 
 }  // namespace millkit::identify

@@ -1,5 +1,6 @@
 #include "identify/verdict.h"
 
+#include <algorithm>
 #include <cmath>
 #include <iomanip>
 #include <sstream>
@@ -34,23 +35,41 @@ void JudgeFit(const FitModel& model, const std::vector<ChannelNoise>& noise,
     const double dof = std::max(1.0, n - fitted_share);
     const double sigma = noise[b].sigma_Nm;
     const double rss = channel.rms_residual * channel.rms_residual * n;
-    channel.chi2_ratio = sigma > 0.0 ? rss / dof / (sigma * sigma)
-                                     : std::numeric_limits<double>::infinity();
+    channel.chi2_ratio =
+        sigma > 0.0 ? rss / dof / (sigma * sigma) : std::numeric_limits<double>::infinity();
     const double spread = std::sqrt(2.0 / dof + 2.0 / std::max(1.0, noise[b].dof));
     const double z = std::log(channel.chi2_ratio) / spread;
-    if (z > options.misfit_z) {
+    // Whiteness: a wrong minimum leaves a smooth systematic residual, correlated over many lags,
+    // long before it shows in the variance. Q = Σ_k (ρ_res(k) − ρ_noise(k))² / (1/n + 1/m) is
+    // ≈ χ²(K) when the residual is the noise; Wilson–Hilferty turns it into a normal z.
+    const auto& reference = noise[b].autocorrelation;
+    const int lags = std::min<int>(static_cast<int>(reference.size()), channel.samples / 4);
+    double z_white = 0.0;
+    if (lags >= 4) {
+      std::vector<double> residual(channel.fitted.size());
+      for (size_t k = 0; k < residual.size(); ++k)
+        residual[k] = channel.fitted[k] - channel.measured[k];
+      const auto rho = Autocorrelation(residual, lags);
+      const double variance = 1.0 / n + 1.0 / std::max(1, noise[b].quiet_samples);
+      double q = 0.0;
+      for (int k = 0; k < lags; ++k) q += (rho[k] - reference[k]) * (rho[k] - reference[k]);
+      q /= variance;
+      const double h = 2.0 / (9.0 * lags);
+      channel.whiteness_z = (std::cbrt(q / lags) - (1.0 - h)) / std::sqrt(h);
+      z_white = channel.whiteness_z;
+    }
+    if (z > options.misfit_z || z_white > options.misfit_z) {
       misfit = true;
       std::string name = channel.column;
       if (model.blocks() > static_cast<int>(model.block(model.blocks() - 1).channel) + 1) {
         name += "@" + channel.record_label;  // several records
       }
-      warnings.push_back("channel " + name + ": the residual (rms " +
-                         Short(channel.rms_residual) + " N*m) is " +
-                         Short(std::sqrt(channel.chi2_ratio)) +
-                         " times the record's noise (" + Short(sigma) + " N*m, " +
-                         channel.noise_source + "), beyond the level z = " +
-                         Short(options.misfit_z) + " (z = " + Short(z) +
-                         "): the model or the minimum does not explain the record");
+      warnings.push_back(
+          "channel " + name + ": the residual (rms " + Short(channel.rms_residual) + " N*m) is " +
+          Short(std::sqrt(channel.chi2_ratio)) + " times the record's noise (" + Short(sigma) +
+          " N*m, " + channel.noise_source + "), beyond the level z = " + Short(options.misfit_z) +
+          " (variance z = " + Short(z) + ", whiteness z = " + Short(z_white) +
+          "): the model or the minimum does not explain the record");
     }
   }
 
@@ -86,12 +105,12 @@ void JudgeFit(const FitModel& model, const std::vector<ChannelNoise>& noise,
   }
 
   if (!chosen.converged) {
-    warnings.insert(warnings.begin(),
-                    "Levenberg-Marquardt did not converge at the best minimum (" +
-                        std::string(ceres::TerminationTypeToString(
-                            chosen.summary.termination_type)) +
-                        " after " + std::to_string(chosen.summary.iterations.size()) +
-                        " iterations: " + chosen.summary.message + ")");
+    warnings.insert(
+        warnings.begin(),
+        "Levenberg-Marquardt did not converge at the best minimum (" +
+            std::string(ceres::TerminationTypeToString(chosen.summary.termination_type)) +
+            " after " + std::to_string(chosen.summary.iterations.size()) +
+            " iterations: " + chosen.summary.message + ")");
     summary.verdict = "not_converged";
   } else if (misfit) {
     summary.verdict = "misfit";

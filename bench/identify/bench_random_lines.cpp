@@ -150,6 +150,21 @@ int main(int argc, char** argv) {
       r.simulations = fit.summary.simulations;
       r.cost = fit.summary.cost;
       r.verdict = Verdict(fit.summary);
+      if (verbose) {
+        for (const auto& w : fit.summary.warnings) std::printf("  [%lu] %s\n", seed, w.c_str());
+        for (size_t i = 0; i < fit.parameters.size() && i < c.truth_values.size(); ++i) {
+          const auto& e = fit.parameters[i];
+          std::printf("  [%lu] %s = %.6g +- %.3g (truth %.6g, start %.6g, bounds %.4g..%.4g)%s%s\n",
+                      seed, e.name.c_str(), e.value, e.standard_error, c.truth_values[i], e.start,
+                      e.lower, e.upper, e.at_bound ? " AT BOUND" : "",
+                      e.identifiable ? "" : " not identifiable");
+        }
+        for (const auto& ch : fit.channels) {
+          std::printf("  [%lu] channel %s: residual/noise variance %.3f, whiteness z %.2f, %s\n",
+                      seed, ch.column.c_str(), ch.chi2_ratio, ch.whiteness_z,
+                      ch.noise_source.c_str());
+        }
+      }
       if (fit.summary.success) {
         r.scores = Score(fit, c);
         r.within = Within(r.scores);

@@ -1,14 +1,14 @@
 // millkit identify SCENE.toml --data record.csv [--data record2.csv ...] [--config fit.toml]
 //                  --out fit.json [--plot fit.svg] [--trace fit.csv]
 // millkit synthesize SCENE.toml --spec record.toml --out record.csv
+#include <glog/logging.h>
+
 #include <iomanip>
 #include <iostream>
 #include <memory>
 #include <optional>
 #include <sstream>
 #include <vector>
-
-#include <glog/logging.h>
 
 #include "cli/commands.h"
 #include "driveline/scene.h"
@@ -35,7 +35,8 @@ struct IdentifyArgs {
 std::string ParameterTable(const identify::FitResult& result, bool several_records) {
   std::ostringstream out;
   out << std::left << std::setw(28) << "parameter" << std::right << std::setw(14) << "value"
-      << std::setw(13) << "std. error" << std::setw(13) << "start" << "  unit / note\n";
+      << std::setw(13) << "std. error" << std::setw(13) << "start"
+      << "  unit / note\n";
   for (const auto& p : result.parameters) {
     out << std::left << std::setw(28) << p.name << std::right << std::setw(14)
         << std::setprecision(6) << p.value << std::setw(13) << std::setprecision(3);
@@ -50,11 +51,11 @@ std::string ParameterTable(const identify::FitResult& result, bool several_recor
     out << "\n";
   }
   for (const auto& c : result.channels) {
-    out << "channel " << c.column << (several_records ? "@" + c.record_label : "") << " -> " << c.link
-        << ": gain " << std::setprecision(6)
-        << c.gain << " +- " << std::setprecision(2) << c.gain_se << ", offset "
-        << std::setprecision(6) << c.offset << " +- " << std::setprecision(2) << c.offset_se
-        << " N*m, rms residual " << std::setprecision(4) << c.rms_residual << " N*m\n";
+    out << "channel " << c.column << (several_records ? "@" + c.record_label : "") << " -> "
+        << c.link << ": gain " << std::setprecision(6) << c.gain << " +- " << std::setprecision(2)
+        << c.gain_se << ", offset " << std::setprecision(6) << c.offset << " +- "
+        << std::setprecision(2) << c.offset_se << " N*m, rms residual " << std::setprecision(4)
+        << c.rms_residual << " N*m\n";
   }
   return out.str();
 }
@@ -91,8 +92,8 @@ void RunIdentify(const IdentifyArgs& args) {
   }
   json_file.stream() << identify::FitJson(result, args.scene, args.data);
   if (plot_file) {
-    plot_file->stream() << identify::FitPlotSvg(result, "millkit identify: " + scene.name +
-                                                            " vs " + record_list);
+    plot_file->stream() << identify::FitPlotSvg(
+        result, "millkit identify: " + scene.name + " vs " + record_list);
   }
   if (trace_file) trace_file->stream() << identify::FitTraceCsv(result);
   json_file.Commit();
@@ -128,10 +129,11 @@ void AddIdentifyCommand(CLI::App& app) {
       "Fit damping, backlash and other scene parameters to a measured torque oscillogram "
       "(Ceres); write values, standard errors, correlations and identifiability flags as JSON");
   command->add_option("scene", args->scene, "Scene TOML file")->required();
-  command->add_option("--data", args->data,
-                      "Record CSV: time, then channel columns. Give it once per record to fit "
-                      "several bites together (shared scene parameters; bite time, gain and "
-                      "offset per record)")
+  command
+      ->add_option("--data", args->data,
+                   "Record CSV: time, then channel columns. Give it once per record to fit "
+                   "several bites together (shared scene parameters; bite time, gain and "
+                   "offset per record)")
       ->required();
   command->add_option("--config", args->config,
                       "Fit TOML: [fit], [set], [[free]], [[channel]] (default: damping and "

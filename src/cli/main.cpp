@@ -1,10 +1,9 @@
 // millkit: one program, subcommands with --help (SPEC §8).
 // Exit codes: 0 success, 2 bad input, 1 solver failure, 3 outputs written but the result not
 // trusted (an identification whose verdict is not ok).
+#include <CLI/CLI.hpp>
 #include <exception>
 #include <iostream>
-
-#include <CLI/CLI.hpp>
 
 #include "cli/commands.h"
 #include "io/input_error.h"
