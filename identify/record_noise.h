@@ -25,9 +25,11 @@ namespace millkit::identify {
 inline constexpr double kOnsetFraction = 0.1;
 inline constexpr double kQuietMargin = 0.2;
 inline constexpr int kMinQuietSamples = 16;
-// No channel is trusted to be quieter than this fraction of its peak (a noise-free synthetic
-// record would otherwise get weights that turn the solver's own 1e-9 into a misfit).
-inline constexpr double kNoiseFloorFraction = 1e-6;
+// No channel is trusted to be quieter than this fraction of its peak: about the resolution of a
+// 14-bit recorder, and above the model's own accuracy (the modelled recorder filter, linear
+// between kFilterOversample points per step, is good to ~4e-5 of the peak). A noise-free
+// synthetic record would otherwise get weights that turn that model error into a misfit.
+inline constexpr double kNoiseFloorFraction = 1e-4;
 // A torque beyond this is not a measurement (N·m; the largest mill drives carry ~1e7).
 inline constexpr double kAbsurdTorque_Nm = 1e12;
 
