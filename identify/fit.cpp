@@ -31,8 +31,10 @@ void FitOptions::Validate() const {
   require(derivative_step > 0.0 && derivative_step < 0.01,
           "derivative_step: must lie in (0, 0.01)");
   require(threads >= 1, "threads: must be >= 1");
-  require(continuation_stages >= 1 && continuation_stages <= 16,
-          "continuation_stages: must lie in [1, 16]");
+  require(first_stage_divisor >= 1.0 && first_stage_divisor <= 1e4,
+          "first_stage_divisor: must lie in [1, 1e4]");
+  require(continuation_ratio > 1.0 && continuation_ratio <= 1e4,
+          "continuation_ratio: must lie in (1, 1e4]");
   require(timing_only_stages >= 0, "timing_only_stages: must be >= 0");
   require(stage_iterations >= 1, "stage_iterations: must be >= 1");
   require(direct_retry_factor >= 1.0, "direct_retry_factor: must be >= 1");
@@ -44,6 +46,8 @@ void FitOptions::Validate() const {
   require(profile_points >= 0, "profile_points: must be >= 0");
   require(profile_chi2 > 0.0, "profile_chi2: must be > 0");
   require(profile_restarts >= 0, "profile_restarts: must be >= 0");
+  require(escalation_factor >= 1, "escalation_factor: must be >= 1");
+  require(preselect_factor >= 1, "preselect_factor: must be >= 1");
   require(misfit_z > 0.0, "misfit_z: must be > 0");
   require(ambiguity_chi2 >= 0.0, "ambiguity_chi2: must be >= 0");
   require(distinct_minimum_se > 0.0, "distinct_minimum_se: must be > 0");
@@ -309,9 +313,13 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
     summary.simulations = model.simulations();
     return result;
   }
-  const auto starts = ScanStarts(model, config, options, start, &summary.scan_points);
+  // The scan ranks its points on the first continuation stage, the short window after the onset
+  // where impact timing decides; the best preselect_factor × starts go through that stage's fit.
+  model.SetStage(ContinuationStages(model, options).front());
+  auto starts = ScanStarts(model, config, options, start, config.starts * options.preselect_factor,
+                           &summary.scan_points);
+  starts = PreselectStarts(&model, options, starts, config.starts);
   std::vector<LocalFit> minima = RefineStarts(&model, options, starts);
-  summary.starts = static_cast<int>(starts.size());
   const auto lowest = [&minima] {
     int best = -1;
     for (int k = 0; k < static_cast<int>(minima.size()); ++k) {
@@ -326,6 +334,30 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
       summary.message += " (last failure: " + model.last_failure() + ")";
     summary.simulations = model.simulations();
     return result;
+  }
+  // A best minimum that leaves the residual unexplained is most often a wrong basin: one more
+  // search, with a scan escalation_factor times as dense, other points and twice the starts.
+  const int fitted_count = static_cast<int>(FittedIndices(model).size());
+  if (options.escalation_factor > 1 &&
+      WorstResidualZ(model, assessment.noise, minima[best].u, fitted_count) > options.misfit_z) {
+    FitConfig wider = config;
+    wider.scan_points = config.scan_points * options.escalation_factor;
+    wider.starts = config.starts * 2;
+    wider.seed = config.seed + 1;
+    int points = 0;
+    model.SetStage(ContinuationStages(model, options).front());
+    auto more = ScanStarts(model, wider, options, minima[best].u,
+                           wider.starts * options.preselect_factor, &points);
+    more = PreselectStarts(&model, options, more, wider.starts);
+    const int offset = static_cast<int>(starts.size());
+    for (auto fit : RefineStarts(&model, options, more)) {
+      fit.start += offset;
+      minima.push_back(std::move(fit));
+    }
+    starts.insert(starts.end(), more.begin(), more.end());
+    summary.scan_points += points;
+    summary.escalated = true;
+    best = lowest();
   }
   // A coarse look along every parameter's axis from the best minimum; a probe below it is a
   // valley the starts missed: Levenberg–Marquardt goes on from there.
@@ -346,6 +378,7 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
     if (best == previous) break;
     probes = ProfileProbes(model, minima[best].u, options);
   }
+  summary.starts = static_cast<int>(starts.size());
   const std::vector<double>& u = minima[best].u;
 
   // Residuals, Jacobian and covariance at the best minimum.
@@ -446,12 +479,11 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   summary.termination = ceres::TerminationTypeToString(chosen.termination_type);
   summary.iterations = static_cast<int>(chosen.iterations.size());
   if (lower_found) {
-    minima[best].converged = false;
     summary.warnings.push_back("a probe " + Short(options.profile_step) +
                                " standard errors from the best point found a lower cost: the fit "
                                "had not reached its minimum");
   }
-  JudgeFit(model, assessment.noise, minima, best, options, &result);
+  JudgeFit(model, assessment.noise, minima, best, lower_found, options, &result);
 
   // Doubts that do not change the verdict.
   for (const auto& e : result.parameters) {

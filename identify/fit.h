@@ -28,7 +28,8 @@
 // The verdict (FitSummary::verdict), in this order:
 //   degenerate     the record cannot support the fit (a value that is not a torque, a flat or
 //                  dead channel, fewer samples after the response starts than fitted quantities);
-//   not_converged  Levenberg–Marquardt did not converge at the best minimum;
+//   not_converged  Levenberg–Marquardt did not converge at the best minimum (and, after the
+//                  rules below, when a probe beside the answer found a lower cost);
 //   misfit         some channel's residual is not its noise, at the one-sided level misfit_z:
 //                  its variance exceeds the noise variance (log-ratio test, both variances'
 //                  degrees of freedom), or its autocorrelation over up to 20 lags differs from
@@ -63,16 +64,25 @@ struct FitOptions {
   bool central_differences = false;
   int threads = 1;  // Ceres threads (the simulations themselves are serial)
 
-  // Continuation: stages end at onset + span/2^j, j = continuation_stages − 1 … 0; the first
-  // timing_only_stages fit only gaps, gap positions and the bite time; a stage before the last
-  // stops after stage_iterations.
-  int continuation_stages = 5;
+  // Continuation: stages end at onset + span/d, d = first_stage_divisor, then divided by
+  // continuation_ratio down to 1; the first timing_only_stages fit only gaps, gap positions and
+  // the bite time; a stage before the last stops after stage_iterations. A stiff shaft with a
+  // small gap rattles many times over a record: its cost valley in the gap narrows as the window
+  // grows, and a stage that grows the window too much at once jumps out of it.
+  double first_stage_divisor = 16.0;
+  double continuation_ratio = 1.189207115002721;
   int timing_only_stages = 1;
-  int stage_iterations = 30;
+  int stage_iterations = 10;
   // The direct whole-window fit of a start is finished only when its try, capped at
   // direct_try_iterations, ends below direct_retry_factor times the continued fit's cost.
   double direct_retry_factor = 1.5;
   int direct_try_iterations = 10;
+  // When the best minimum fails the misfit test, one more search with escalation_factor times the
+  // scan points (other points) and twice the starts; 1: none.
+  int escalation_factor = 4;
+  // The scan's best preselect_factor × starts points go through the first continuation stage
+  // (cheap: a short window); the best distinct results are the starts.
+  int preselect_factor = 4;
   // Scan points closer than this (RMS over the scanned unit coordinates) are one start.
   double distinct_start = 0.1;
 
@@ -156,6 +166,7 @@ struct FitSummary {
   int iterations = 0;
   int scan_points = 0;
   int starts = 0;
+  bool escalated = false;  // the misfit of the first search's best minimum asked for a second
   int starts_at_best = 0;  // starts whose fits reach the best minimum (same point)
   long simulations = 0;
   double wall_time_s = 0.0;

@@ -24,7 +24,8 @@ bool TimingParameter(const FreeParameter& free) {
 
 std::vector<std::vector<double>> ScanStarts(const FitModel& model, const FitConfig& config,
                                             const FitOptions& options,
-                                            const std::vector<double>& start, int* evaluated) {
+                                            const std::vector<double>& start, int count,
+                                            int* evaluated) {
   std::vector<int> scanned;
   for (int i = 0; i < model.parameters(); ++i) {
     if (model.free(i).scan) scanned.push_back(i);
@@ -56,7 +57,7 @@ std::vector<std::vector<double>> ScanStarts(const FitModel& model, const FitConf
   };
   std::vector<std::vector<double>> best;
   for (const auto& [cost, u] : candidates) {
-    if (static_cast<int>(best.size()) >= config.starts) break;
+    if (static_cast<int>(best.size()) >= count) break;
     const bool distinct = std::all_of(best.begin(), best.end(), [&](const auto& other) {
       return distance(u, other) >= options.distinct_start;
     });
@@ -111,17 +112,55 @@ LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<do
   return fit;
 }
 
+std::vector<double> ContinuationStages(const FitModel& model, const FitOptions& options) {
+  std::vector<double> stages;
+  for (double divisor = options.first_stage_divisor; divisor > 1.0 + 1e-9;
+       divisor /= options.continuation_ratio) {
+    if (model.FewestSamples(divisor) >= kMinRecordSamples) stages.push_back(divisor);
+  }
+  stages.push_back(1.0);
+  return stages;
+}
+
+std::vector<std::vector<double>> PreselectStarts(FitModel* model, const FitOptions& options,
+                                                 const std::vector<std::vector<double>>& points,
+                                                 int count) {
+  const std::vector<double> stages = ContinuationStages(*model, options);
+  if (stages.size() < 2 || static_cast<int>(points.size()) <= count) return points;
+  model->SetStage(stages.front());
+  std::vector<int> not_timing;
+  for (int i = 0; i < model->parameters(); ++i) {
+    if (!TimingParameter(model->free(i))) not_timing.push_back(i);
+  }
+  if (static_cast<int>(not_timing.size()) == model->parameters()) not_timing.clear();
+  std::vector<std::pair<double, std::vector<double>>> fitted;
+  for (const auto& u : points) {
+    LocalFit fit = Refine(*model, options, u, false, options.stage_iterations,
+                          options.timing_only_stages > 0 ? not_timing : std::vector<int>{});
+    if (fit.usable) fitted.emplace_back(fit.cost, std::move(fit.u));
+  }
+  model->SetStage(1.0);
+  std::stable_sort(fitted.begin(), fitted.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<std::vector<double>> best;
+  for (const auto& [cost, u] : fitted) {
+    if (static_cast<int>(best.size()) >= count) break;
+    const bool distinct = std::all_of(best.begin(), best.end(), [&](const auto& other) {
+      double sum = 0.0;
+      for (size_t s = 0; s < u.size(); ++s) sum += (u[s] - other[s]) * (u[s] - other[s]);
+      return std::sqrt(sum / std::max<size_t>(1, u.size())) >= options.distinct_start;
+    });
+    if (distinct) best.push_back(u);
+  }
+  return best;
+}
+
 std::vector<LocalFit> RefineStarts(FitModel* model, const FitOptions& options,
                                    const std::vector<std::vector<double>>& starts) {
   // Continuation over the window length: the first stage ends shortly after the response starts,
   // where impact timing (gaps, bite time) dominates and the misfit has few local minima; each
   // stage doubles the fitted span and starts from the previous stage's answer.
-  std::vector<double> stages;  // window divisors, the last 1 (the whole window)
-  for (int j = options.continuation_stages - 1; j >= 1; --j) {
-    const double divisor = static_cast<double>(1 << j);
-    if (model->FewestSamples(divisor) >= kMinRecordSamples) stages.push_back(divisor);
-  }
-  stages.push_back(1.0);
+  const std::vector<double> stages = ContinuationStages(*model, options);
   // The first timing_only_stages fit only the timing parameters; the others (dampings,
   // stiffness), which a short window hardly constrains, are held at their start there.
   std::vector<int> not_timing;

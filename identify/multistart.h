@@ -24,17 +24,29 @@ struct LocalFit {
 
 // The scan: `start`, then a Latin hypercube of config.scan_points over the scanned slots (the
 // others at their start), each point's gains and offsets solved in closed form; its cost is the
-// whole window's. Returns up to config.starts points, best first, no two closer than
+// current stage's. Returns up to `count` points, best first, no two closer than
 // options.distinct_start (RMS distance in unit coordinates over the scanned slots).
 std::vector<std::vector<double>> ScanStarts(const FitModel& model, const FitConfig& config,
                                             const FitOptions& options,
-                                            const std::vector<double>& start, int* evaluated);
+                                            const std::vector<double>& start, int count,
+                                            int* evaluated);
+
+// The first continuation stage (the timing parameters on the short window after the onset) from
+// every point, cheap because the window is short; returns the `count` best distinct results.
+// Many points go in, so that a narrow timing basin (a stiff shaft's small gap) is not left to
+// the luck of the scan's ranking.
+std::vector<std::vector<double>> PreselectStarts(FitModel* model, const FitOptions& options,
+                                                 const std::vector<std::vector<double>>& points,
+                                                 int count);
 
 // Levenberg–Marquardt on the current stage of `model` from u; a stage before the last stops at a
 // loose tolerance after `iterations` (its answer only has to start the next stage inside the right
 // basin). Frozen slots are held.
 LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<double> u,
                 bool final_stage, int iterations, const std::vector<int>& frozen = {});
+
+// Window divisors of the continuation stages (FitModel::SetStage), the last 1 (whole window).
+std::vector<double> ContinuationStages(const FitModel& model, const FitOptions& options);
 
 // Every start refined through the continuation and, besides, directly on the whole window; the
 // model is left on the whole window. Returns every local minimum (whole-window costs).

@@ -16,48 +16,76 @@ std::string Short(double value, int digits = 3) {
 
 }  // namespace
 
+ResidualTest TestResidual(const std::vector<double>& residual, const ChannelNoise& noise,
+                          double fitted_share) {
+  ResidualTest test;
+  const double n = static_cast<double>(residual.size());
+  // The variance ratio's logarithm is ≈ normal with variance 2/ν_residual + 2/ν_noise.
+  const double dof = std::max(1.0, n - fitted_share);
+  const double sigma = noise.sigma_Nm;
+  double rss = 0.0;
+  for (const double r : residual) rss += r * r;
+  test.variance_ratio =
+      sigma > 0.0 ? rss / dof / (sigma * sigma) : std::numeric_limits<double>::infinity();
+  test.variance_z =
+      std::log(test.variance_ratio) / std::sqrt(2.0 / dof + 2.0 / std::max(1.0, noise.dof));
+  // Whiteness: a wrong minimum leaves a smooth systematic residual, correlated over many lags,
+  // long before it shows in the variance. Q = Σ_k (ρ_res(k) − ρ_noise(k))² / (1/n + 1/m) is
+  // ≈ χ²(K) when the residual is the noise; Wilson–Hilferty turns it into a normal z.
+  const auto& reference = noise.autocorrelation;
+  const int lags = std::min<int>(static_cast<int>(reference.size()), static_cast<int>(n) / 4);
+  if (lags >= 4) {
+    const auto rho = Autocorrelation(residual, lags);
+    const double variance = 1.0 / n + 1.0 / std::max(1, noise.quiet_samples);
+    double q = 0.0;
+    for (int k = 0; k < lags; ++k) q += (rho[k] - reference[k]) * (rho[k] - reference[k]);
+    q /= variance;
+    const double h = 2.0 / (9.0 * lags);
+    test.whiteness_z = (std::cbrt(q / lags) - (1.0 - h)) / std::sqrt(h);
+  }
+  return test;
+}
+
+double WorstResidualZ(const FitModel& model, const std::vector<ChannelNoise>& noise,
+                      const std::vector<double>& u, int fitted_quantities) {
+  Eigen::VectorXd r;
+  if (!model.ProjectedResiduals(u.data(), &r)) return std::numeric_limits<double>::infinity();
+  double worst = 0.0;
+  for (int b = 0; b < model.blocks(); ++b) {
+    const auto& block = model.block(b);
+    std::vector<double> residual(block.measured.size());
+    for (size_t k = 0; k < residual.size(); ++k) residual[k] = r(block.offset + k) / block.weight;
+    const ResidualTest test =
+        TestResidual(residual, noise[b],
+                     static_cast<double>(fitted_quantities) * residual.size() / model.residuals());
+    worst = std::max({worst, test.variance_z, test.whiteness_z});
+  }
+  return worst;
+}
+
 void JudgeFit(const FitModel& model, const std::vector<ChannelNoise>& noise,
-              const std::vector<LocalFit>& minima, int best, const FitOptions& options,
-              FitResult* result) {
+              const std::vector<LocalFit>& minima, int best, bool lower_found,
+              const FitOptions& options, FitResult* result) {
   auto& summary = result->summary;
   auto& warnings = summary.warnings;
   const LocalFit& chosen = minima[best];
   bool misfit = false;
   bool ambiguous = false;
 
-  // The residual against the record's own noise, channel by channel: the variance ratio's
-  // logarithm is ≈ normal with variance 2/ν_residual + 2/ν_noise.
   const double total = std::max(1, summary.residuals);
   for (size_t b = 0; b < result->channels.size(); ++b) {
     auto& channel = result->channels[b];
-    const double n = channel.samples;
-    const double fitted_share = summary.fitted_quantities * n / total;
-    const double dof = std::max(1.0, n - fitted_share);
-    const double sigma = noise[b].sigma_Nm;
-    const double rss = channel.rms_residual * channel.rms_residual * n;
-    channel.chi2_ratio =
-        sigma > 0.0 ? rss / dof / (sigma * sigma) : std::numeric_limits<double>::infinity();
-    const double spread = std::sqrt(2.0 / dof + 2.0 / std::max(1.0, noise[b].dof));
-    const double z = std::log(channel.chi2_ratio) / spread;
-    // Whiteness: a wrong minimum leaves a smooth systematic residual, correlated over many lags,
-    // long before it shows in the variance. Q = Σ_k (ρ_res(k) − ρ_noise(k))² / (1/n + 1/m) is
-    // ≈ χ²(K) when the residual is the noise; Wilson–Hilferty turns it into a normal z.
-    const auto& reference = noise[b].autocorrelation;
-    const int lags = std::min<int>(static_cast<int>(reference.size()), channel.samples / 4);
-    double z_white = 0.0;
-    if (lags >= 4) {
-      std::vector<double> residual(channel.fitted.size());
-      for (size_t k = 0; k < residual.size(); ++k)
-        residual[k] = channel.fitted[k] - channel.measured[k];
-      const auto rho = Autocorrelation(residual, lags);
-      const double variance = 1.0 / n + 1.0 / std::max(1, noise[b].quiet_samples);
-      double q = 0.0;
-      for (int k = 0; k < lags; ++k) q += (rho[k] - reference[k]) * (rho[k] - reference[k]);
-      q /= variance;
-      const double h = 2.0 / (9.0 * lags);
-      channel.whiteness_z = (std::cbrt(q / lags) - (1.0 - h)) / std::sqrt(h);
-      z_white = channel.whiteness_z;
+    std::vector<double> residual(channel.fitted.size());
+    for (size_t k = 0; k < residual.size(); ++k) {
+      residual[k] = channel.fitted[k] - channel.measured[k];
     }
+    const ResidualTest test =
+        TestResidual(residual, noise[b], summary.fitted_quantities * channel.samples / total);
+    channel.chi2_ratio = test.variance_ratio;
+    channel.whiteness_z = test.whiteness_z;
+    const double z = test.variance_z;
+    const double z_white = test.whiteness_z;
+    const double sigma = noise[b].sigma_Nm;
     if (z > options.misfit_z || z_white > options.misfit_z) {
       misfit = true;
       std::string name = channel.column;
@@ -116,6 +144,9 @@ void JudgeFit(const FitModel& model, const std::vector<ChannelNoise>& noise,
     summary.verdict = "misfit";
   } else if (ambiguous) {
     summary.verdict = "ambiguous";
+  } else if (lower_found) {
+    // Levenberg–Marquardt stopped, but a probe beside its answer is lower (the warning says so).
+    summary.verdict = "not_converged";
   } else {
     summary.verdict = "ok";
   }
