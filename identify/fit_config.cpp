@@ -125,13 +125,22 @@ void ValidateFitConfig(const FitConfig& config, const std::vector<Oscillogram>& 
 }
 
 FitConfig LoadFitConfig(const std::string& path, const Oscillogram& record,
-                        driveline::Scene* scene) {
+                        const driveline::Scene& scene) {
   return LoadFitConfig(path, std::vector<Oscillogram>{record}, scene);
 }
 
+void ApplySetValues(const FitConfig& config, driveline::Scene* scene) {
+  for (const auto& [parameter, value] : config.set) parameter.Set(value, scene);
+  if (!config.set.empty()) driveline::ValidateScene(*scene);
+}
+
 FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>& records,
-                        driveline::Scene* scene) {
+                        const driveline::Scene& given_scene) {
   if (records.empty()) throw InputError(path + ": no record to fit");
+  // The [set] values are checked, and the defaults of the [[free]] starts read, on a copy with
+  // them applied; the caller applies them to its own scene (ApplySetValues).
+  driveline::Scene with_set = given_scene;
+  driveline::Scene* scene = &with_set;
   const toml::table root = LoadTomlFile(path);
   const TomlSection top(root, path, "");
   top.RequireOnlyKeys({"fit", "set", "free", "channel"});
@@ -171,6 +180,7 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
                   "value " + FormatNumber(value) + " is outside the physical range of " + name);
       }
       parameter.Set(value, scene);
+      config.set.emplace_back(parameter, value);
     }
     driveline::ValidateScene(*scene);
   }

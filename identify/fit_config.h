@@ -1,11 +1,11 @@
-// What to fit (SPEC.md §4, issue 3): free scene parameters with bounds and starts, the channel →
+// What to fit (SPEC.md §4, issues 3 and 12; the user's reference is docs/identify.md): free scene parameters with bounds and starts, the channel →
 // link mapping with per-channel weights and nuisance gain/offset, the time window and the
 // multi-start settings. Read from a TOML file (`millkit identify --config fit.toml`):
 //
 //   [fit]
 //   window = [0.0, 0.4]    # s, part of the record fitted (default: the whole record)
-//   scan = 32              # coarse scan points over gaps and bite time (default 32; 0 = none)
-//   starts = 2             # best scan points refined by Ceres (default 2, >= 1)
+//   scan = 128             # coarse scan points over the scanned parameters (default 128; 0 = none)
+//   starts = 4             # distinct starts refined by Ceres (default 4, >= 1)
 //   seed = 1               # of the scan's Latin hypercube
 //   [set]                  # known values replacing the scene's, not fitted
 //   "lower_spindle.gap_position" = 1.0
@@ -34,6 +34,7 @@
 #pragma once
 
 #include <optional>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -77,18 +78,24 @@ struct FitConfig {
   int scan_points = kDefaultScanPoints;
   int starts = kDefaultStarts;
   unsigned seed = 1;
+  // [set]: known values replacing the scene's, not fitted (ApplySetValues puts them in a scene).
+  std::vector<std::pair<driveline::SceneParameter, double>> set;
 };
 
-// Reads the config, applies its [set] values to `scene` and checks everything against the scene
-// and every record. Throws InputError naming file and key: unknown keys or parameter names, lower
+// Reads the config and checks everything against the scene (with the config's [set] values
+// applied to a copy: the caller applies them to the scene it fits, ApplySetValues) and every
+// record. Throws InputError naming file and key: unknown keys or parameter names, lower
 // > upper, a start outside its bounds, bounds outside the parameter's physical range, a window
 // outside a record or with fewer than kMinRecordSamples samples, a channel column missing from a
 // record, an unknown link, a repeated parameter or channel. The default window is the time span
 // every record covers.
 FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>& records,
-                        driveline::Scene* scene);
+                        const driveline::Scene& scene);
 FitConfig LoadFitConfig(const std::string& path, const Oscillogram& record,
-                        driveline::Scene* scene);
+                        const driveline::Scene& scene);
+
+// Sets the config's [set] values in `scene` and validates it.
+void ApplySetValues(const FitConfig& config, driveline::Scene* scene);
 
 // The defaults above: channels are the columns of the first record named like links. Throws
 // InputError when there is none.

@@ -59,7 +59,8 @@ Setup LoadSetup() {
 
 FitConfig Config(const Oscillogram& record, driveline::Scene* scene) {
   FitConfig config =
-      LoadFitConfig(kSource + "/datasets/records/mill5_two_spindles.fit.toml", record, scene);
+      LoadFitConfig(kSource + "/datasets/records/mill5_two_spindles.fit.toml", record, *scene);
+  ApplySetValues(config, scene);
   for (auto& c : config.channels) c.lowpass_Hz = 0.0;
   return config;
 }

@@ -81,7 +81,8 @@ void RunIdentify(const IdentifyArgs& args) {
   }
   const identify::FitConfig config = args.config.empty()
                                          ? identify::DefaultFitConfig(scene, records)
-                                         : identify::LoadFitConfig(args.config, records, &scene);
+                                         : identify::LoadFitConfig(args.config, records, scene);
+  identify::ApplySetValues(config, &scene);
   const auto result = identify::Fit(scene, records, config, identify::FitOptions{});
   std::cerr << result.summary.BriefReport() << "\n";
   if (!result.summary.success) {

@@ -31,7 +31,7 @@ FitConfig Load(const std::string& text) {
   ScratchDir dir;
   WriteText(dir / "fit.toml", text);
   auto scene = Mill5Scene();
-  return LoadFitConfig((dir / "fit.toml").string(), record, &scene);
+  return LoadFitConfig((dir / "fit.toml").string(), record, scene);
 }
 
 }  // namespace

@@ -68,7 +68,8 @@ inline Oscillogram Mill5Record(double noise_fraction, int bits, double lowpass_H
 inline FitConfig Mill5Config(const std::vector<Oscillogram>& records, driveline::Scene* scene,
                              double lowpass_Hz = 0.0) {
   FitConfig config = LoadFitConfig(
-      millkit::testing::SourcePath("datasets/records/mill5_two_spindles.fit.toml"), records, scene);
+      millkit::testing::SourcePath("datasets/records/mill5_two_spindles.fit.toml"), records, *scene);
+  ApplySetValues(config, scene);
   for (auto& channel : config.channels) channel.lowpass_Hz = lowpass_Hz;
   config.scan_points = 0;
   config.starts = 1;
