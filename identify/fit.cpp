@@ -47,6 +47,8 @@ void FitOptions::Validate() const {
   require(profile_chi2 > 0.0, "profile_chi2: must be > 0");
   require(profile_restarts >= 0, "profile_restarts: must be >= 0");
   require(escalation_factor >= 1, "escalation_factor: must be >= 1");
+  require(hops >= 0, "hops: must be >= 0");
+  require(hop_radius > 0.0, "hop_radius: must be > 0");
   require(preselect_factor >= 1, "preselect_factor: must be >= 1");
   require(misfit_z > 0.0, "misfit_z: must be > 0");
   require(ambiguity_chi2 >= 0.0, "ambiguity_chi2: must be >= 0");
@@ -361,14 +363,25 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   }
   // A coarse look along every parameter's axis from the best minimum; a probe below it is a
   // valley the starts missed: Levenberg–Marquardt goes on from there.
+  // Basin hopping: a valley next door that every start missed.
+  for (auto& point : HopPoints(model, minima[best].u, minima[best].cost, options)) {
+    LocalFit fit = Refine(model, options, std::move(point), true, options.max_iterations);
+    fit.start = -1;
+    minima.push_back(std::move(fit));
+  }
+  best = lowest();
   std::vector<ProfileProbe> probes = ProfileProbes(model, minima[best].u, options);
   for (int restart = 0; restart < options.profile_restarts; ++restart) {
-    const ProfileProbe* lower = nullptr;
-    for (const auto& probe : probes) {
-      if (probe.cost < minima[best].cost && (lower == nullptr || probe.cost < lower->cost)) {
-        lower = &probe;
+    const auto lowest_probe = [&](const std::vector<ProfileProbe>& candidates) {
+      const ProfileProbe* lower = nullptr;
+      for (const auto& probe : candidates) {
+        if (probe.cost < minima[best].cost && (lower == nullptr || probe.cost < lower->cost)) {
+          lower = &probe;
+        }
       }
-    }
+      return lower;
+    };
+    const ProfileProbe* lower = lowest_probe(probes);
     if (lower == nullptr) break;
     LocalFit fit = Refine(model, options, lower->u, true, options.max_iterations);
     fit.start = -1;

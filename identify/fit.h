@@ -99,6 +99,11 @@ struct FitOptions {
   int profile_points = 8;
   double profile_chi2 = 25.0;
   int profile_restarts = 2;
+  // Basin hopping from the best minimum: hops refinements from points hop_radius standard
+  // errors away in random directions (seeded by hop_seed); a lower one becomes the best.
+  int hops = 4;
+  double hop_radius = 5.0;
+  unsigned hop_seed = 1;
 
   // Verdict levels (see above).
   double misfit_z = 3.0;

@@ -1,6 +1,7 @@
-// What to fit (SPEC.md §4, issues 3 and 12; the user's reference is docs/identify.md): free scene parameters with bounds and starts, the channel →
-// link mapping with per-channel weights and nuisance gain/offset, the time window and the
-// multi-start settings. Read from a TOML file (`millkit identify --config fit.toml`):
+// What to fit (SPEC.md §4, issues 3 and 12; the user's reference is docs/identify.md): free scene
+// parameters with bounds and starts, the channel → link mapping with per-channel weights and
+// nuisance gain/offset, the time window and the multi-start settings. Read from a TOML file
+// (`millkit identify --config fit.toml`):
 //
 //   [fit]
 //   window = [0.0, 0.4]    # s, part of the record fitted (default: the whole record)
@@ -34,8 +35,8 @@
 #pragma once
 
 #include <optional>
-#include <utility>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "driveline/scene.h"

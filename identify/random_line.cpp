@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "driveline/model.h"
+#include "driveline/natural_frequencies.h"
 #include "driveline/scene_parameter.h"
 #include "identify/record_generator.h"
 #include "io/input_error.h"
@@ -165,7 +166,7 @@ bool DrawStiffnesses(Draw& draw, driveline::Scene* scene) {
           kTwoPi * draw.LogUniform(kMinModeHz * kLinkBandFactor, kMaxModeHz / kLinkBandFactor);
       link.stiffness_Nm_per_rad = omega * omega * EffectiveInertia(*scene, link);
     }
-    const std::vector<double> modes = NaturalFrequenciesHz(*scene);
+    const std::vector<double> modes = ElasticModesHz(*scene);
     const double lo = modes.front(), hi = modes.back();
     if (hi / lo > hi_allowed / lo_allowed) continue;
     // Frequencies scale with sqrt(c): any scale in this range keeps every mode in the band.
@@ -363,7 +364,7 @@ RandomLineCase DrawCase(unsigned long seed, Draw& draw) {
         (i ? " " : "") + truth.masses[i].name + " " + Format("%.3g", truth.masses[i].inertia_kg_m2);
   }
   d += " kg·m²); modes";
-  for (double f : NaturalFrequenciesHz(truth)) d += Format(" %.1f", f);
+  for (double f : ElasticModesHz(truth)) d += Format(" %.1f", f);
   d += " Hz; gaps";
   bool any_gap = false;
   for (const auto& link : truth.links) {
@@ -387,25 +388,9 @@ RandomLineCase DrawCase(unsigned long seed, Draw& draw) {
 
 }  // namespace
 
-std::vector<double> NaturalFrequenciesHz(const driveline::Scene& scene) {
-  const int n = static_cast<int>(scene.masses.size());
-  Eigen::MatrixXd k = Eigen::MatrixXd::Zero(n, n);
-  Eigen::MatrixXd j = Eigen::MatrixXd::Zero(n, n);
-  for (int i = 0; i < n; ++i) j(i, i) = scene.masses[i].inertia_kg_m2;
-  for (const auto& link : scene.links) {
-    const double c = link.stiffness_Nm_per_rad;
-    k(link.from, link.from) += c;
-    k(link.to, link.to) += c;
-    k(link.from, link.to) -= c;
-    k(link.to, link.from) -= c;
-  }
-  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eigen(k, j,
-                                                                        Eigen::EigenvaluesOnly);
-  // Ascending; the first is the rigid-body mode (ω² = 0 to roundoff) of the free tree.
-  std::vector<double> modes;
-  for (int i = 1; i < n; ++i) {
-    modes.push_back(std::sqrt(std::max(eigen.eigenvalues()[i], 0.0)) / kTwoPi);
-  }
+std::vector<double> ElasticModesHz(const driveline::Scene& scene) {
+  std::vector<double> modes = driveline::NaturalFrequenciesHz(scene);
+  modes.erase(modes.begin());  // the rigid-body mode
   return modes;
 }
 

@@ -52,9 +52,8 @@ struct RandomLineCase {
 // generator. Throws std::runtime_error only if 20 draws in a row fail (never seen in 500 seeds).
 RandomLineCase MakeRandomLineCase(unsigned long seed);
 
-// Non-zero natural frequencies (Hz, ascending) of the undamped line with every gap closed at the
-// link's own stiffness c: K v = ω² J v over the free tree, the rigid-body mode dropped. Requires a
-// connected tree without gear ratios.
-std::vector<double> NaturalFrequenciesHz(const driveline::Scene& scene);
+// Elastic natural frequencies (Hz, ascending) of the undamped line with every gap closed
+// (driveline/natural_frequencies.h without the rigid-body mode).
+std::vector<double> ElasticModesHz(const driveline::Scene& scene);
 
 }  // namespace millkit::identify

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <iomanip>
 #include <limits>
+#include <random>
 #include <sstream>
 
 namespace millkit::identify {
@@ -115,6 +116,44 @@ std::vector<ProfileProbe> ProfileProbes(const FitModel& model, const std::vector
     }
   }
   return probes;
+}
+
+std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vector<double>& u,
+                                           double cost, const FitOptions& options) {
+  std::vector<std::vector<double>> points;
+  Eigen::VectorXd r;
+  std::vector<Nuisance> nuisance;
+  Eigen::MatrixXd jacobian;
+  if (options.hops < 1 || !model.ProjectedResiduals(u.data(), &r, &nuisance) ||
+      !model.FullJacobian(u, nuisance, options.derivative_step, &r, &jacobian)) {
+    return points;
+  }
+  const auto constant = model.ConstantIndices();
+  std::vector<int> fitted;
+  for (int j = 0; j < model.size(); ++j) {
+    if (std::find(constant.begin(), constant.end(), j) == constant.end()) fitted.push_back(j);
+  }
+  const int p = model.parameters();
+  const double dof = std::max(1.0, static_cast<double>(model.residuals() - fitted.size()));
+  const Eigen::MatrixXd covariance = Covariance(jacobian, fitted, std::sqrt(2.0 * cost / dof));
+  // The scene block of the covariance, factored: a hop of radius ρ is ρ standard errors of the
+  // joint distribution in a random direction.
+  const Eigen::MatrixXd scene_block = covariance.topLeftCorner(p, p);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(scene_block);
+  const Eigen::VectorXd roots = eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  const Eigen::MatrixXd root = eigen.eigenvectors() * roots.asDiagonal();
+  std::mt19937_64 random(options.hop_seed);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  for (int h = 0; h < options.hops; ++h) {
+    Eigen::VectorXd z(p);
+    for (int i = 0; i < p; ++i) z(i) = uniform(random);
+    if (!(z.norm() > 0.0)) continue;
+    const Eigen::VectorXd step = root * (options.hop_radius * z / z.norm());
+    std::vector<double> point(u);
+    for (int i = 0; i < p; ++i) point[i] = std::clamp(u[i] + step(i), 0.0, 1.0);
+    points.push_back(std::move(point));
+  }
+  return points;
 }
 
 std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,

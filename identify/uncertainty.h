@@ -38,6 +38,13 @@ struct ProfileProbe {
 std::vector<ProfileProbe> ProfileProbes(const FitModel& model, const std::vector<double>& u,
                                         const FitOptions& options);
 
+// Basin hopping: options.hops points at options.hop_radius standard errors from the minimum u
+// (cost `cost`) in random directions of the joint distribution of the scene parameters, the
+// covariance from a fresh Jacobian. Levenberg–Marquardt from them finds a valley next door
+// (rattling small gaps make them side by side) that the scan's starts all missed.
+std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vector<double>& u,
+                                           double cost, const FitOptions& options);
+
 // The profile check: for each identifiable scene parameter i, θ moves along its profile
 // direction C e_i / √C_ii by ± profile_step (in standard errors); the linearisation predicts the
 // cost to rise by ½ step² noise_scale². Where the actual projected cost rises less on either side,

@@ -7,14 +7,15 @@
 #include <exception>
 #include <limits>
 
+#include "driveline/natural_frequencies.h"
 #include "io/input_error.h"
 #include "io/toml_section.h"
-#include "optimize/coupling/natural_frequencies.h"
 #include "sweep/sweep_runner.h"
 
 namespace millkit::coupling {
 namespace {
 
+using driveline::LowestNaturalFrequencyHz;
 using driveline::SceneParameter;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 

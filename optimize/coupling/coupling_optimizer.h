@@ -6,7 +6,7 @@
 //               f_1(x) ≥ min_frequency                              (lowest natural frequency)
 // twist_l is the quasi-static twist of the model (SPEC §2.4: the rest flank plus the elastic
 // twist) at the rated torque; f_1 is the lowest elastic mode with every gap closed
-// (natural_frequencies.h).
+// (driveline/natural_frequencies.h).
 //
 // How: the twist constraint of a link whose stiffness is a variable is monotone in that one
 // stiffness, so it is imposed exactly as a lower bound c_l ≥ |T| / (max_twist − b/2) (rounded up

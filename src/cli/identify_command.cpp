@@ -127,8 +127,11 @@ void AddIdentifyCommand(CLI::App& app) {
   auto args = std::make_shared<IdentifyArgs>();
   auto* command = app.add_subcommand(
       "identify",
-      "Fit damping, backlash and other scene parameters to a measured torque oscillogram "
-      "(Ceres); write values, standard errors, correlations and identifiability flags as JSON");
+      "Fit damping, backlash and other scene parameters to measured torque oscillograms "
+      "(Ceres); write values, standard errors, correlations, identifiability flags and a "
+      "verdict (ok, misfit, ambiguous, not_converged, degenerate) as JSON. Exit 0 for ok, 3 "
+      "for any other verdict (every output still written), 2 for bad input, 1 when no fit "
+      "could be made. Reference: docs/identify.md");
   command->add_option("scene", args->scene, "Scene TOML file")->required();
   command
       ->add_option("--data", args->data,
@@ -137,8 +140,8 @@ void AddIdentifyCommand(CLI::App& app) {
                    "offset per record)")
       ->required();
   command->add_option("--config", args->config,
-                      "Fit TOML: [fit], [set], [[free]], [[channel]] (default: damping and "
-                      "backlash of every link, bite_time; channels named like links)");
+                      "Fit TOML: [fit], [set], [[free]], [[channel]] (docs/identify.md; default: "
+                      "damping and backlash of every link, bite_time; channels named like links)");
   command->add_option("--out", args->out, "Fit result JSON (written atomically)")->required();
   command->add_option("--plot", args->plot, "SVG of measured vs fitted torque and residual");
   command->add_option("--trace", args->trace, "CSV of measured, fitted and residual per channel");

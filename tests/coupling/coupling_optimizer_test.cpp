@@ -15,7 +15,7 @@
 
 #include "driveline/scene_builder.h"
 #include "io/input_error.h"
-#include "optimize/coupling/natural_frequencies.h"
+#include "driveline/natural_frequencies.h"
 #include "support/study_support.h"
 
 using namespace millkit::coupling;

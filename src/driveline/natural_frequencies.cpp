@@ -1,4 +1,4 @@
-#include "optimize/coupling/natural_frequencies.h"
+#include "driveline/natural_frequencies.h"
 
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
@@ -6,7 +6,7 @@
 #include <cmath>
 #include <numbers>
 
-namespace millkit::coupling {
+namespace millkit::driveline {
 
 std::vector<double> NaturalFrequenciesHz(const driveline::Scene& scene) {
   const int n = static_cast<int>(scene.masses.size());
@@ -34,4 +34,4 @@ double LowestNaturalFrequencyHz(const driveline::Scene& scene) {
   return hz.size() < 2 ? 0.0 : hz[1];
 }
 
-}  // namespace millkit::coupling
+}  // namespace millkit::driveline

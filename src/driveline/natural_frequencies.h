@@ -15,7 +15,7 @@
 
 #include "driveline/scene.h"
 
-namespace millkit::coupling {
+namespace millkit::driveline {
 
 // All N frequencies in Hz, ascending; the first is the rigid-body mode (0 to roundoff, clamped
 // at 0). Assumes a valid scene (positive inertias and stiffnesses, a tree).
@@ -24,4 +24,4 @@ std::vector<double> NaturalFrequenciesHz(const driveline::Scene& scene);
 // The lowest elastic natural frequency (Hz); 0 for a single mass.
 double LowestNaturalFrequencyHz(const driveline::Scene& scene);
 
-}  // namespace millkit::coupling
+}  // namespace millkit::driveline

@@ -1,5 +1,5 @@
 // Undamped natural frequencies with the gaps closed: closed forms and a cross-check.
-#include "optimize/coupling/natural_frequencies.h"
+#include "driveline/natural_frequencies.h"
 
 #include <catch2/catch.hpp>
 #include <cmath>
@@ -8,7 +8,6 @@
 #include "driveline/scene_builder.h"
 #include "support/study_support.h"
 
-using namespace millkit::coupling;
 using namespace millkit::driveline;
 using Catch::Matchers::WithinAbs;
 using Catch::Matchers::WithinRel;
