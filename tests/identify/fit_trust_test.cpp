@@ -390,3 +390,35 @@ TEST_CASE("identify without a config on the bundled record says it is not sure a
 }
 
 }  // namespace millkit::identify
+
+namespace millkit::identify {
+
+TEST_CASE("a gain held by its bounds is reported at the bound") {
+  const Oscillogram record = Mill5Record(0.01, 12, 0.0, 3);  // true upper gain 1.03
+  auto scene = Mill5Scene();
+  FitConfig config = Mill5Config(record, &scene);
+  config.channels[0].gain_lower = 0.9;
+  config.channels[0].gain_upper = 1.0;
+  const FitResult fit = Fit(scene, record, config, FitOptions{});
+  REQUIRE(fit.summary.success);
+  CHECK(fit.channels[0].gain == 1.0);
+  CHECK(fit.channels[0].gain_at_bound);
+  CHECK_FALSE(fit.channels[1].gain_at_bound);
+  bool reported = false;
+  for (const auto& w : fit.summary.warnings) reported = reported || w.find("gain_bounds") != w.npos;
+  CHECK(reported);
+}
+
+TEST_CASE("gain bounds that exclude 1 are rejected naming the key") {
+  using namespace millkit::testing;
+  ScratchDir dir;
+  const Oscillogram record = Mill5Record(0.0, 0, 0.0, 1);
+  WriteText(dir / "fit.toml",
+            "[[free]]\nname = \"upper_spindle.damping\"\nlower = 500.0\nupper = 30000.0\n"
+            "[[channel]]\ncolumn = \"upper_spindle\"\ngain_bounds = [1.1, 2.0]\n");
+  CHECK_THROWS_WITH(
+      LoadFitConfig((dir / "fit.toml").string(), record, Mill5Scene()),
+      Contains("fit.toml") && Contains("gain_bounds") && Contains("0 < lower <= 1 <= upper"));
+}
+
+}  // namespace millkit::identify
