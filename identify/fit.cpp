@@ -290,6 +290,152 @@ FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const Fi
   return Fit(scene, std::vector<Oscillogram>{record}, config, options);
 }
 
+namespace {
+
+// The best minimum described: values and standard errors (covariance widened where the profile is
+// flatter), identifiability, channels, correlations. Sets lower_found when a profile probe found a
+// lower cost. False when the best minimum does not simulate.
+bool DescribeBest(const FitModel& model, const Search& search, const RecordAssessment& assessment,
+                  const FitOptions& options, FitResult* result, bool* lower_found) {
+  auto& summary = result->summary;
+  const std::vector<double>& u = search.minima[search.best].u;
+  Eigen::VectorXd r;
+  std::vector<Nuisance> nuisance;
+  std::vector<Eigen::VectorXd> m;
+  Eigen::MatrixXd jac;
+  if (!model.ProjectedResiduals(u.data(), &r, &nuisance, &m) ||
+      !model.FullJacobian(u, nuisance, options.derivative_step, &r, &jac)) {
+    return false;
+  }
+  const auto fitted = FittedIndices(model);
+  const double dof = static_cast<double>(model.residuals()) - static_cast<double>(fitted.size());
+  summary.cost = 0.5 * r.squaredNorm();
+  summary.residuals = model.residuals();
+  summary.fitted_quantities = static_cast<int>(fitted.size());
+  summary.noise_scale = std::sqrt(2.0 * summary.cost / std::max(1.0, dof));
+  Eigen::MatrixXd covariance = Covariance(jac, fitted, summary.noise_scale);
+  const auto widening =
+      ProfileWidening(model, u, covariance, summary.cost, summary.noise_scale, options,
+                      std::vector<bool>(model.parameters(), true), search.probes, lower_found);
+  std::string widened;
+  for (int i = 0; i < model.parameters(); ++i) {
+    if (widening[i] > 1.0 && std::isfinite(widening[i])) {
+      covariance.row(i) *= widening[i];
+      covariance.col(i) *= widening[i];
+      if (widening[i] > 1.05) {
+        widened += (widened.empty() ? "" : ", ") + model.slot(i).name + " x" + Short(widening[i]);
+      }
+    }
+  }
+  if (!widened.empty()) {
+    summary.warnings.push_back(
+        "standard errors widened where the cost is flatter than its linearisation: " + widened);
+  }
+
+  for (int i = 0; i < model.parameters(); ++i) {
+    const auto& free = model.free(i);
+    ParameterEstimate e;
+    e.name = model.slot(i).name;
+    e.unit = free.parameter.unit;
+    if (model.slot(i).record >= 0) e.record = model.record(model.slot(i).record).source;
+    e.value = model.Physical(i, u[i]);
+    e.standard_error = std::sqrt(covariance(i, i)) * model.slot(i).map.PhysicalPerUnit(u[i]);
+    e.start = free.start;
+    e.lower = free.lower;
+    e.upper = free.upper;
+    e.at_bound = u[i] <= 1e-9 || u[i] >= 1.0 - 1e-9;
+    result->parameters.push_back(e);
+  }
+  FlagUnidentifiable(model, jac, fitted, summary.noise_scale, options, result);
+  FlagPlateaus(model, search.probes, result);
+  FillChannels(model, m, nuisance, assessment.noise, result);
+  for (int b = 0; b < model.blocks(); ++b) {
+    auto& c = result->channels[b];
+    c.gain_se = std::sqrt(covariance(model.gain_index(b), model.gain_index(b)));
+    c.offset_se =
+        std::sqrt(covariance(model.offset_index(b), model.offset_index(b))) * model.block(b).scale;
+  }
+  for (const int j : fitted) {
+    if (j < model.parameters()) {
+      result->quantity_names.push_back(model.slot(j).name);
+    } else {
+      const int b = (j - model.parameters()) / 2;
+      result->quantity_names.push_back(model.NuisanceName(b, j == model.gain_index(b)));
+    }
+  }
+  result->correlation.resize(fitted.size(), fitted.size());
+  for (size_t a = 0; a < fitted.size(); ++a) {
+    for (size_t b = 0; b < fitted.size(); ++b) {
+      result->correlation(a, b) =
+          covariance(fitted[a], fitted[b]) /
+          std::sqrt(covariance(fitted[a], fitted[a]) * covariance(fitted[b], fitted[b]));
+    }
+  }
+  return true;
+}
+
+// Every local minimum, and how many starts reach the best one: some fit of theirs ends within
+// one standard error of it in every identifiable parameter, at a χ² within 1.
+void ListMinima(const FitModel& model, const Search& search, FitResult* result) {
+  auto& summary = result->summary;
+  std::vector<bool> reached(search.starts, false);
+  const double scale2 = summary.noise_scale * summary.noise_scale;
+  const LocalFit& best = search.minima[search.best];
+  for (const auto& fit : search.minima) {
+    LocalMinimum minimum;
+    minimum.cost = fit.cost;
+    minimum.start = fit.start;
+    minimum.iterations = static_cast<int>(fit.summary.iterations.size());
+    minimum.converged = fit.converged;
+    bool same = fit.usable && 2.0 * (fit.cost - best.cost) <= scale2;
+    for (int i = 0; i < model.parameters(); ++i) {
+      minimum.values.push_back(model.Physical(i, fit.u[i]));
+      const auto& e = result->parameters[i];
+      if (e.identifiable && std::abs(minimum.values[i] - e.value) > e.standard_error) same = false;
+    }
+    if (same && fit.start >= 0) reached[fit.start] = true;
+    result->minima.push_back(std::move(minimum));
+  }
+  summary.starts = search.starts;
+  summary.scan_points = search.scan_points;
+  summary.escalated = search.escalated;
+  summary.starts_at_best = static_cast<int>(std::count(reached.begin(), reached.end(), true));
+  summary.ceres_brief = best.summary.BriefReport();
+  summary.termination = ceres::TerminationTypeToString(best.summary.termination_type);
+  summary.iterations = static_cast<int>(best.summary.iterations.size());
+}
+
+// Doubts that do not change the verdict: values at bounds, noise without a quiet stretch.
+void AddDoubts(const RecordAssessment& assessment, bool several_records, FitResult* result) {
+  auto& warnings = result->summary.warnings;
+  for (const auto& e : result->parameters) {
+    if (e.at_bound) {
+      warnings.push_back(e.name + " = " + Short(e.value) + " " + e.unit + " is at a bound of [" +
+                         Short(e.lower) + ", " + Short(e.upper) +
+                         "]: the best value may lie outside");
+    }
+  }
+  for (size_t b = 0; b < result->channels.size(); ++b) {
+    const auto& c = result->channels[b];
+    const std::string name = c.column + (several_records ? "@" + c.record_label : "");
+    if (c.gain_at_bound) {
+      warnings.push_back("channel " + name + ": gain " + Short(c.gain) +
+                         " is at its bound (gain_bounds)");
+    }
+    if (c.offset_at_bound) {
+      warnings.push_back("channel " + name + ": offset " + Short(c.offset) +
+                         " N*m is at its bound (offset_limit)");
+    }
+    if (!assessment.noise[b].from_quiet_stretch) {
+      warnings.push_back("channel " + name +
+                         ": no quiet stretch before the response; its noise was estimated from "
+                         "second differences, which a coarsely sampled response inflates");
+    }
+  }
+}
+
+}  // namespace
+
 FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& records,
               const FitConfig& config, const FitOptions& options) {
   options.Validate();
@@ -298,6 +444,7 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   const auto elapsed = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   };
+  // The records' noise (the fixed weights) and whether they can support a fit at all.
   const RecordAssessment assessment = AssessRecords(records, config);
   FitModel model(scene, records, config, assessment.weights);
   std::vector<double> start(model.parameters());
@@ -307,232 +454,38 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
     result.summary.wall_time_s = elapsed();
     return result;
   }
-
   FitResult result;
   auto& summary = result.summary;
-  if (!std::isfinite(model.ProjectedCost(start.data()))) {
-    summary.message = "the start point does not simulate: " + model.last_failure();
+  const auto fail = [&](const std::string& message) {
+    summary.message = message;
     summary.simulations = model.simulations();
+    summary.wall_time_s = elapsed();
     return result;
-  }
-  // The scan ranks its points on the first continuation stage, the short window after the onset
-  // where impact timing decides; the best preselect_factor × starts go through that stage's fit.
-  model.SetStage(ContinuationStages(model, options).front());
-  auto starts = ScanStarts(model, config, options, start, config.starts * options.preselect_factor,
-                           &summary.scan_points);
-  starts = PreselectStarts(&model, options, starts, config.starts);
-  std::vector<LocalFit> minima = RefineStarts(&model, options, starts);
-  const auto lowest = [&minima] {
-    int best = -1;
-    for (int k = 0; k < static_cast<int>(minima.size()); ++k) {
-      if (minima[k].usable && (best < 0 || minima[k].cost < minima[best].cost)) best = k;
-    }
-    return best;
   };
-  int best = lowest();
-  if (best < 0) {
-    summary.message = "no start converged to a usable solution";
-    if (!model.last_failure().empty())
-      summary.message += " (last failure: " + model.last_failure() + ")";
-    summary.simulations = model.simulations();
-    return result;
+  if (!std::isfinite(model.ProjectedCost(start.data()))) {
+    return fail("the start point does not simulate: " + model.last_failure());
   }
-  // A best minimum that leaves the residual unexplained is most often a wrong basin: one more
-  // search, with a scan escalation_factor times as dense, other points and twice the starts.
-  const int fitted_count = static_cast<int>(FittedIndices(model).size());
-  if (options.escalation_factor > 1 &&
-      WorstResidualZ(model, assessment.noise, minima[best].u, fitted_count) > options.misfit_z) {
-    FitConfig wider = config;
-    wider.scan_points = config.scan_points * options.escalation_factor;
-    wider.starts = config.starts * 2;
-    wider.seed = config.seed + 1;
-    int points = 0;
-    model.SetStage(ContinuationStages(model, options).front());
-    auto more = ScanStarts(model, wider, options, minima[best].u,
-                           wider.starts * options.preselect_factor, &points);
-    more = PreselectStarts(&model, options, more, wider.starts);
-    const int offset = static_cast<int>(starts.size());
-    for (auto fit : RefineStarts(&model, options, more)) {
-      fit.start += offset;
-      minima.push_back(std::move(fit));
-    }
-    starts.insert(starts.end(), more.begin(), more.end());
-    summary.scan_points += points;
-    summary.escalated = true;
-    best = lowest();
+  // Every local minimum the global search finds, the best one checked around.
+  const Search search = GlobalSearch(&model, config, options, assessment.noise, start);
+  if (search.best < 0) {
+    std::string message = "no start converged to a usable solution";
+    if (!model.last_failure().empty()) message += " (last failure: " + model.last_failure() + ")";
+    return fail(message);
   }
-  // A coarse look along every parameter's axis from the best minimum; a probe below it is a
-  // valley the starts missed: Levenberg–Marquardt goes on from there.
-  // Basin hopping: a valley next door that every start missed.
-  for (auto& point : HopPoints(model, minima[best].u, minima[best].cost, options)) {
-    LocalFit fit = Refine(model, options, std::move(point), true, options.max_iterations);
-    fit.start = -1;
-    minima.push_back(std::move(fit));
-  }
-  best = lowest();
-  std::vector<ProfileProbe> probes = ProfileProbes(model, minima[best].u, options);
-  for (int restart = 0; restart < options.profile_restarts; ++restart) {
-    const auto lowest_probe = [&](const std::vector<ProfileProbe>& candidates) {
-      const ProfileProbe* lower = nullptr;
-      for (const auto& probe : candidates) {
-        if (probe.cost < minima[best].cost && (lower == nullptr || probe.cost < lower->cost)) {
-          lower = &probe;
-        }
-      }
-      return lower;
-    };
-    const ProfileProbe* lower = lowest_probe(probes);
-    if (lower == nullptr) break;
-    LocalFit fit = Refine(model, options, lower->u, true, options.max_iterations);
-    fit.start = -1;
-    minima.push_back(std::move(fit));
-    const int previous = best;
-    best = lowest();
-    if (best == previous) break;
-    probes = ProfileProbes(model, minima[best].u, options);
-  }
-  summary.starts = static_cast<int>(starts.size());
-  const std::vector<double>& u = minima[best].u;
-
-  // Residuals, Jacobian and covariance at the best minimum.
-  Eigen::VectorXd r;
-  std::vector<Nuisance> nuisance;
-  std::vector<Eigen::VectorXd> m;
-  Eigen::MatrixXd jac;
-  if (!model.ProjectedResiduals(u.data(), &r, &nuisance, &m) ||
-      !model.FullJacobian(u, nuisance, options.derivative_step, &r, &jac)) {
-    summary.message = "the solution does not simulate: " + model.last_failure();
-    summary.simulations = model.simulations();
-    return result;
-  }
-  const auto fitted = FittedIndices(model);
-  const double dof = static_cast<double>(model.residuals()) - static_cast<double>(fitted.size());
-  summary.cost = 0.5 * r.squaredNorm();
-  summary.residuals = model.residuals();
-  summary.fitted_quantities = static_cast<int>(fitted.size());
-  summary.noise_scale = std::sqrt(2.0 * summary.cost / std::max(1.0, dof));
-  Eigen::MatrixXd covariance = Covariance(jac, fitted, summary.noise_scale);
+  // Its values, standard errors and identifiability; then the verdict.
   bool lower_found = false;
-  const auto widening =
-      ProfileWidening(model, u, covariance, summary.cost, summary.noise_scale, options,
-                      std::vector<bool>(model.parameters(), true), probes, &lower_found);
-  std::vector<std::string> widened;
-  for (int i = 0; i < model.parameters(); ++i) {
-    if (widening[i] > 1.0 && std::isfinite(widening[i])) {
-      covariance.row(i) *= widening[i];
-      covariance.col(i) *= widening[i];
-      if (widening[i] > 1.05) widened.push_back(model.slot(i).name + " x" + Short(widening[i]));
-    }
+  if (!DescribeBest(model, search, assessment, options, &result, &lower_found)) {
+    return fail("the solution does not simulate: " + model.last_failure());
   }
-
-  for (int i = 0; i < model.parameters(); ++i) {
-    const auto& free = model.free(i);
-    ParameterEstimate e;
-    e.name = model.slot(i).name;
-    e.unit = free.parameter.unit;
-    if (model.slot(i).record >= 0) e.record = records[model.slot(i).record].source;
-    e.value = model.Physical(i, u[i]);
-    e.standard_error = std::sqrt(covariance(i, i)) * model.slot(i).map.PhysicalPerUnit(u[i]);
-    e.start = free.start;
-    e.lower = free.lower;
-    e.upper = free.upper;
-    e.at_bound = u[i] <= 1e-9 || u[i] >= 1.0 - 1e-9;
-    result.parameters.push_back(e);
-  }
-  FlagUnidentifiable(model, jac, fitted, summary.noise_scale, options, &result);
-  FlagPlateaus(model, probes, &result);
-  FillChannels(model, m, nuisance, assessment.noise, &result);
-  for (int b = 0; b < model.blocks(); ++b) {
-    auto& c = result.channels[b];
-    c.gain_se = std::sqrt(covariance(model.gain_index(b), model.gain_index(b)));
-    c.offset_se =
-        std::sqrt(covariance(model.offset_index(b), model.offset_index(b))) * model.block(b).scale;
-  }
-  for (const int j : fitted) {
-    if (j < model.parameters()) {
-      result.quantity_names.push_back(model.slot(j).name);
-    } else {
-      const int b = (j - model.parameters()) / 2;
-      result.quantity_names.push_back(model.NuisanceName(b, j == model.gain_index(b)));
-    }
-  }
-  result.correlation.resize(fitted.size(), fitted.size());
-  for (size_t a = 0; a < fitted.size(); ++a) {
-    for (size_t b = 0; b < fitted.size(); ++b) {
-      result.correlation(a, b) =
-          covariance(fitted[a], fitted[b]) /
-          std::sqrt(covariance(fitted[a], fitted[a]) * covariance(fitted[b], fitted[b]));
-    }
-  }
-
-  // Every local minimum, and how many starts reach the best one: some fit of theirs ends within
-  // one standard error of it in every identifiable parameter, at a χ² within 1.
-  std::vector<bool> reached(starts.size(), false);
-  const double scale2 = summary.noise_scale * summary.noise_scale;
-  for (const auto& fit : minima) {
-    LocalMinimum minimum;
-    minimum.cost = fit.cost;
-    minimum.start = fit.start;
-    minimum.iterations = static_cast<int>(fit.summary.iterations.size());
-    minimum.converged = fit.converged;
-    bool same = fit.usable && 2.0 * (fit.cost - minima[best].cost) <= scale2;
-    for (int i = 0; i < model.parameters(); ++i) {
-      minimum.values.push_back(model.Physical(i, fit.u[i]));
-      const auto& e = result.parameters[i];
-      if (e.identifiable && std::abs(minimum.values[i] - e.value) > e.standard_error) same = false;
-    }
-    if (same && fit.start >= 0) reached[fit.start] = true;
-    result.minima.push_back(std::move(minimum));
-  }
-  summary.starts_at_best = static_cast<int>(std::count(reached.begin(), reached.end(), true));
-
+  ListMinima(model, search, &result);
   summary.success = true;
-  const auto& chosen = minima[best].summary;
-  summary.ceres_brief = chosen.BriefReport();
-  summary.termination = ceres::TerminationTypeToString(chosen.termination_type);
-  summary.iterations = static_cast<int>(chosen.iterations.size());
   if (lower_found) {
     summary.warnings.push_back("a probe " + Short(options.profile_step) +
                                " standard errors from the best point found a lower cost: the fit "
                                "had not reached its minimum");
   }
-  JudgeFit(model, assessment.noise, minima, best, lower_found, options, &result);
-
-  // Doubts that do not change the verdict.
-  for (const auto& e : result.parameters) {
-    if (e.at_bound) {
-      summary.warnings.push_back(e.name + " = " + Short(e.value) + " " + e.unit +
-                                 " is at a bound of [" + Short(e.lower) + ", " + Short(e.upper) +
-                                 "]: the best value may lie outside");
-    }
-  }
-  for (const auto& c : result.channels) {
-    const std::string name = c.column + (records.size() > 1 ? "@" + c.record_label : "");
-    if (c.gain_at_bound) {
-      summary.warnings.push_back("channel " + name + ": gain " + Short(c.gain) +
-                                 " is at its bound (gain_bounds)");
-    }
-    if (c.offset_at_bound) {
-      summary.warnings.push_back("channel " + name + ": offset " + Short(c.offset) +
-                                 " N*m is at its bound (offset_limit)");
-    }
-  }
-  for (size_t b = 0; b < assessment.noise.size(); ++b) {
-    if (!assessment.noise[b].from_quiet_stretch) {
-      summary.warnings.push_back(
-          "channel " + result.channels[b].column +
-          ": no quiet stretch before the response; its noise was estimated from second "
-          "differences, which a coarsely sampled response inflates");
-    }
-  }
-  if (!widened.empty()) {
-    std::string list;
-    for (const auto& w : widened) list += (list.empty() ? "" : ", ") + w;
-    summary.warnings.push_back(
-        "standard errors widened where the cost is flatter than its "
-        "linearisation: " +
-        list);
-  }
+  JudgeFit(model, assessment.noise, search.minima, search.best, lower_found, options, &result);
+  AddDoubts(assessment, records.size() > 1, &result);
   summary.simulations = model.simulations();
   summary.wall_time_s = elapsed();
   return result;

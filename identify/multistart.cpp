@@ -4,6 +4,8 @@
 #include <cmath>
 #include <random>
 
+#include "identify/verdict.h"
+
 namespace millkit::identify {
 namespace {
 
@@ -200,6 +202,77 @@ std::vector<LocalFit> RefineStarts(FitModel* model, const FitOptions& options,
   }
   model->SetStage(1.0);
   return minima;
+}
+
+Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& options,
+                    const std::vector<ChannelNoise>& noise, const std::vector<double>& start) {
+  Search search;
+  auto& minima = search.minima;
+  const auto lowest = [&minima] {
+    int best = -1;
+    for (int k = 0; k < static_cast<int>(minima.size()); ++k) {
+      if (minima[k].usable && (best < 0 || minima[k].cost < minima[best].cost)) best = k;
+    }
+    return best;
+  };
+  // The scan ranks its points on the first continuation stage, the short window after the onset
+  // where impact timing decides; the best preselect_factor × starts go through that stage's fit.
+  const auto search_from = [&](const FitConfig& settings, const std::vector<double>& from) {
+    int points = 0;
+    model->SetStage(ContinuationStages(*model, options).front());
+    auto starts = ScanStarts(*model, settings, options, from,
+                             settings.starts * options.preselect_factor, &points);
+    starts = PreselectStarts(model, options, starts, settings.starts);
+    for (auto fit : RefineStarts(model, options, starts)) {
+      fit.start += search.starts;
+      minima.push_back(std::move(fit));
+    }
+    search.starts += static_cast<int>(starts.size());
+    search.scan_points += points;
+    search.best = lowest();
+  };
+  search_from(config, start);
+  if (search.best < 0) return search;
+
+  // A best minimum that leaves the residual unexplained is most often a wrong basin: one more
+  // search, with a scan escalation_factor times as dense, other points and twice the starts.
+  int fitted = model->size() - static_cast<int>(model->ConstantIndices().size());
+  if (options.escalation_factor > 1 &&
+      WorstResidualZ(*model, noise, minima[search.best].u, fitted) > options.misfit_z) {
+    FitConfig wider = config;
+    wider.scan_points = config.scan_points * options.escalation_factor;
+    wider.starts = config.starts * 2;
+    wider.seed = config.seed + 1;
+    search.escalated = true;
+    search_from(wider, minima[search.best].u);
+  }
+  // Basin hopping: a valley next door that every start missed.
+  for (auto& point : HopPoints(*model, minima[search.best].u, minima[search.best].cost, options)) {
+    LocalFit fit = Refine(*model, options, std::move(point), true, options.max_iterations);
+    fit.start = -1;
+    minima.push_back(std::move(fit));
+  }
+  search.best = lowest();
+  // A coarse look along every parameter's axis from the best minimum; a probe below it is a
+  // valley the starts missed: Levenberg–Marquardt goes on from there.
+  search.probes = ProfileProbes(*model, minima[search.best].u, options);
+  for (int restart = 0; restart < options.profile_restarts; ++restart) {
+    const ProfileProbe* lower = nullptr;
+    for (const auto& probe : search.probes) {
+      if (probe.cost < minima[search.best].cost && (lower == nullptr || probe.cost < lower->cost)) {
+        lower = &probe;
+      }
+    }
+    if (lower == nullptr) break;
+    LocalFit fit = Refine(*model, options, lower->u, true, options.max_iterations);
+    fit.start = -1;
+    minima.push_back(std::move(fit));
+    const int previous = search.best;
+    search.best = lowest();
+    if (search.best == previous) break;
+    search.probes = ProfileProbes(*model, minima[search.best].u, options);
+  }
+  return search;
 }
 
 }  // namespace millkit::identify

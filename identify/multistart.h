@@ -10,6 +10,8 @@
 
 #include "identify/fit.h"
 #include "identify/fit_model.h"
+#include "identify/record_noise.h"
+#include "identify/uncertainty.h"
 
 namespace millkit::identify {
 
@@ -52,5 +54,25 @@ std::vector<double> ContinuationStages(const FitModel& model, const FitOptions& 
 // model is left on the whole window. Returns every local minimum (whole-window costs).
 std::vector<LocalFit> RefineStarts(FitModel* model, const FitOptions& options,
                                    const std::vector<std::vector<double>>& starts);
+
+// Everything the global search found.
+struct Search {
+  std::vector<LocalFit> minima;
+  int best = -1;  // the lowest usable minimum; −1 when none is usable
+  int starts = 0;
+  int scan_points = 0;
+  bool escalated = false;
+  std::vector<ProfileProbe> probes;  // the axis probes around the best minimum
+};
+
+// The whole search from the start point (unit coordinates):
+//  1. the scan, ranked on the first continuation stage, its best preselect_factor × starts
+//     through that stage's fit (PreselectStarts), the best distinct ones refined (RefineStarts);
+//  2. when the best minimum fails the misfit test (record noise per block), once more with
+//     escalation_factor × the scan points and twice the starts, from another seed;
+//  3. basin hopping from the best minimum (HopPoints);
+//  4. the axis probes (ProfileProbes), restarting from a lower one up to profile_restarts times.
+Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& options,
+                    const std::vector<ChannelNoise>& noise, const std::vector<double>& start);
 
 }  // namespace millkit::identify
