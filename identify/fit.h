@@ -13,12 +13,14 @@
 // parameter (bite_time by default) has one value per record, every channel of every record its
 // own gain and offset.
 //
-// The search (identify/multistart.h): a Latin-hypercube scan over every free parameter marked
-// `scan` (all by default; dampings and stiffnesses on a log scale, identify/parameter_map.h) with
-// gains and offsets solved in closed form at each point (variable projection), then
-// Levenberg–Marquardt from the best distinct scan points, each through a continuation over the
-// window length and directly on the whole window. Derivatives: finite differences of the exact
-// solver (forward while iterating, central for the covariance).
+// The search (identify/multistart.h, GlobalSearch): a Latin-hypercube scan over every free
+// parameter marked `scan` (all by default; dampings and stiffnesses on a log scale,
+// identify/parameter_map.h), ranked on a short window after the onset with gains and offsets
+// solved in closed form at each point (variable projection); the timing of the best points fitted
+// on that window; Levenberg–Marquardt from the best distinct ones through a fine continuation
+// over the window length and directly on the whole window; one escalated search when the best
+// minimum misfits; basin hops and axis probes around the best. Derivatives: finite differences of
+// the exact solver (forward while iterating, central for the covariance).
 //
 // Uncertainty: the covariance of every fitted quantity from the noise-weighted Jacobian,
 // scaled by the residual variance 2·cost/(N − P) (the report says so); where the cost along a
