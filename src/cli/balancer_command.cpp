@@ -17,6 +17,7 @@
 #include "cli/commands.h"
 #include "io/atomic_file.h"
 #include "io/input_error.h"
+#include "io/output_files.h"
 #include "io/toml_section.h"
 
 namespace millkit::cli {
@@ -242,6 +243,7 @@ void AddBalancerCommand(CLI::App& app) {
   command->add_option("--required-force", options->required_force_N,
                       "Force that balances the spindle exactly, N (balance.required_force_N)");
   command->callback([options] {
+    CheckOutputPaths({{"--out", options->out}}, {options->config});
     const bal::BalancerInput input = LoadInput(*options);
     const bal::BalancerResult result = bal::CalculateBalancer(input);
     if (!options->out.empty()) {

@@ -6,9 +6,9 @@
 #include <memory>
 
 #include "cli/commands.h"
-#include "cli/output_paths.h"
 #include "io/atomic_file.h"
 #include "io/input_error.h"
+#include "io/output_files.h"
 #include "io/svg_plot.h"
 #include "optimize/coupling/coupling_config.h"
 #include "optimize/coupling/coupling_report.h"
@@ -30,7 +30,8 @@ void RunCoupling(const CouplingArgs& args) {
   coupling::CouplingStudy study = coupling::LoadCouplingStudy(args.config, scene);
   study.curve.threads = args.threads;
   study.curve.Validate();
-  CheckOutputPaths({{"--out", args.out}, {"--curve", args.curve}, {"--plot", args.plot}});
+  CheckOutputPaths({{"--out", args.out}, {"--curve", args.curve}, {"--plot", args.plot}},
+                   {args.scene, args.config});
 
   const coupling::CouplingResult result =
       coupling::OptimizeCoupling(scene, study.problem, study.options);

@@ -19,6 +19,7 @@
 #include "identify/record_generator.h"
 #include "io/atomic_file.h"
 #include "io/input_error.h"
+#include "io/output_files.h"
 
 namespace millkit::cli {
 namespace {
@@ -66,6 +67,10 @@ void RunIdentify(const IdentifyArgs& args) {
   FLAGS_minloglevel = 3;
   // Open every output first: an unwritable directory fails before minutes of fitting, and a failed
   // fit leaves none of them behind.
+  std::vector<std::string> inputs = args.data;
+  inputs.push_back(args.scene);
+  inputs.push_back(args.config);
+  CheckOutputPaths({{"--out", args.out}, {"--plot", args.plot}, {"--trace", args.trace}}, inputs);
   AtomicFile json_file(args.out);
   std::optional<AtomicFile> plot_file;
   std::optional<AtomicFile> trace_file;
@@ -114,6 +119,7 @@ struct SynthesizeArgs {
 };
 
 void RunSynthesize(const SynthesizeArgs& args) {
+  CheckOutputPaths({{"--out", args.out}}, {args.scene, args.spec});
   AtomicFile file(args.out);
   driveline::Scene scene = driveline::LoadScene(args.scene);
   const auto spec = identify::LoadRecordSpec(args.spec, &scene);

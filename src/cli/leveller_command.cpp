@@ -13,6 +13,7 @@
 #include "io/atomic_file.h"
 #include "io/csv.h"
 #include "io/input_error.h"
+#include "io/output_files.h"
 #include "io/toml_section.h"
 #include "leveller/leveller_config.h"
 #include "leveller/linkage.h"
@@ -66,6 +67,7 @@ struct ForwardArgs {
 };
 
 void RunForward(const ForwardArgs& args) {
+  CheckOutputPaths({{"--out", args.out}}, {args.in, args.geometry});
   const LevellerConfig config = LoadConfig(args.geometry);
   const Linkage linkage(config.linkage);
   const CsvTable table = ReadCsv(args.in);
@@ -141,6 +143,7 @@ NloptInverseOptions InverseOptionsFor(const std::string& name) {
 }
 
 void RunInverse(const InverseArgs& args) {
+  CheckOutputPaths({{"--out", args.out}}, {args.in, args.geometry});
   if (!(std::isfinite(args.encoder_deg) && args.encoder_deg > 0.0)) {
     throw InputError("--encoder-deg must be > 0 (got " + FormatNumber(args.encoder_deg) + ")");
   }
@@ -216,6 +219,7 @@ struct ForcesArgs {
 };
 
 void RunForces(const ForcesArgs& args) {
+  CheckOutputPaths({{"--out", args.out}}, {args.geometry});
   const LevellerConfig config = LoadConfig(args.geometry);
   const std::pair<const char*, double> checks[] = {{"--yield-mpa", args.yield_mpa},
                                                    {"--width-mm", args.width_mm},
@@ -273,6 +277,7 @@ struct TableArgs {
 };
 
 void RunTable(const TableArgs& args) {
+  CheckOutputPaths({{"--out", args.out}}, {args.strips, args.geometry});
   const LevellerConfig config = LoadConfig(args.geometry);
   TableOptions options;
   options.encoder_deg = args.encoder_deg;

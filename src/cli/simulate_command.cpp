@@ -6,6 +6,7 @@
 #include "driveline/simulation.h"
 #include "io/atomic_file.h"
 #include "io/input_error.h"
+#include "io/output_files.h"
 #include "io/toml_section.h"
 
 namespace millkit::cli {
@@ -50,6 +51,7 @@ void WriteResultCsv(const driveline::Scene& scene, const driveline::SimulationRe
 }
 
 void RunSimulate(const SimulateArgs& args) {
+  CheckOutputPaths({{"--out", args.out}}, {args.scene});
   driveline::SimulationOptions options;
   if (args.solver == "exact") {
     options.solver = driveline::SolverKind::kExact;

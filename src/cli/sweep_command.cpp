@@ -6,9 +6,9 @@
 #include <memory>
 
 #include "cli/commands.h"
-#include "cli/output_paths.h"
 #include "io/atomic_file.h"
 #include "io/input_error.h"
+#include "io/output_files.h"
 #include "io/svg_plot.h"
 #include "sweep/mpi_runner.h"
 #include "sweep/sweep_config.h"
@@ -36,7 +36,7 @@ void RunSweep(const SweepArgs& args) {
   const driveline::Scene scene = driveline::LoadScene(args.scene);
   const sweep::SweepConfig config = sweep::LoadSweepConfig(args.config, scene);
   const sweep::CaseList cases = config.Cases();
-  CheckOutputPaths({{"--out", args.out}, {"--plot", args.plot}});
+  CheckOutputPaths({{"--out", args.out}, {"--plot", args.plot}}, {args.scene, args.config});
 
   sweep::RunnerSummary summary;
   const auto results = sweep::RunCasesDistributed(

@@ -1,18 +1,31 @@
 #include "io/atomic_file.h"
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <system_error>
 
 #include "io/input_error.h"
+#include "io/output_files.h"
 
 namespace millkit {
 
 AtomicFile::AtomicFile(std::filesystem::path path) : path_(std::move(path)) {
-  temp_path_ = path_;
+  // A symlink is written through: the temporary goes beside its target, which is replaced.
+  target_ = ResolvedOutputPath(path_);
+  struct stat info {};
+  if (::stat(target_.c_str(), &info) == 0 && !S_ISREG(info.st_mode)) {
+    throw InputError(path_.string() +
+                     ": is not a regular file (a device, FIFO, socket or directory); an output "
+                     "must be a new path or a regular file");
+  }
+  temp_path_ = target_;
   temp_path_ += ".tmp." + std::to_string(::getpid());
+  InstallTemporaryFileCleanup();
+  RegisterTemporaryFile(temp_path_);
   stream_.open(temp_path_, std::ios::out | std::ios::trunc);
   if (!stream_) {
+    ReleaseTemporaryFile(temp_path_);
     throw InputError(path_.string() + ": cannot open for writing (does the directory exist?)");
   }
   stream_.precision(17);
@@ -23,6 +36,7 @@ AtomicFile::~AtomicFile() {
     stream_.close();
     std::error_code ignored;
     std::filesystem::remove(temp_path_, ignored);
+    ReleaseTemporaryFile(temp_path_);
   }
 }
 
@@ -32,9 +46,10 @@ void AtomicFile::Commit() {
   stream_.close();
   if (!ok) throw InputError(path_.string() + ": write failed");
   std::error_code error;
-  std::filesystem::rename(temp_path_, path_, error);
+  std::filesystem::rename(temp_path_, target_, error);
   if (error) throw InputError(path_.string() + ": cannot replace file: " + error.message());
   committed_ = true;
+  ReleaseTemporaryFile(temp_path_);
 }
 
 void WriteFileAtomically(const std::filesystem::path& path, const std::string& content) {

@@ -1,6 +1,8 @@
 // Output files written atomically: the content goes to a temporary file beside the target and is
 // renamed over it only on Commit(). A writer destroyed without Commit() removes the temporary, so
-// a failed run leaves no partial output behind (SPEC §8).
+// a failed run leaves no partial output behind; SIGINT, SIGTERM and SIGHUP remove it too. An
+// existing symlink is written through; an existing device, FIFO, socket or directory is refused
+// (io/output_files.h has the whole protocol).
 #pragma once
 
 #include <filesystem>
@@ -23,6 +25,7 @@ class AtomicFile {
 
  private:
   std::filesystem::path path_;
+  std::filesystem::path target_;  // path_ with a symlink resolved
   std::filesystem::path temp_path_;
   std::ofstream stream_;
   bool committed_ = false;
