@@ -65,12 +65,16 @@ std::string FitSummary::BriefReport() const {
   return out.str();
 }
 
-bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record,
+double TimeOrigin(const FitConfig& config, const Oscillogram& record) {
+  return config.time_origin_s ? *config.time_origin_s : record.time_s.front();
+}
+
+bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, double origin_s,
                       const std::vector<ChannelSpec>& channels, int begin, int end,
                       std::vector<Eigen::VectorXd>* torques, std::string* why) {
   try {
     driveline::Scene run = scene;
-    run.duration_s = record.time_s[end - 1];
+    run.duration_s = record.time_s[end - 1] - origin_s;
     driveline::SimulationOptions options;
     options.estimate_error = false;
     // A modelled recorder filter needs the signal from the record's start, kFilterOversample
@@ -82,12 +86,15 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record,
     std::vector<double> times;
     times.reserve(static_cast<size_t>(end - first - 1) * stride + 1);
     for (int k = first; k < end; ++k) {
-      times.push_back(record.time_s[k]);
+      times.push_back(record.time_s[k] - origin_s);
       if (k + 1 == end) break;
       const double step = (record.time_s[k + 1] - record.time_s[k]) / stride;
-      for (int j = 1; j < stride; ++j) times.push_back(record.time_s[k] + j * step);
+      for (int j = 1; j < stride; ++j) times.push_back(record.time_s[k] - origin_s + j * step);
     }
-    if (times.front() < 0.0) throw InputError(record.source + ": record time before 0");
+    if (times.front() < 0.0) {
+      throw InputError(record.source + ": record time " + std::to_string(record.time_s[first]) +
+                       " s lies before the time origin " + std::to_string(origin_s) + " s");
+    }
     options.output_times = times;
     const driveline::Model model(std::move(run));
     const auto result = driveline::Simulate(model, options);
@@ -446,15 +453,19 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   };
   // The records' noise (the fixed weights) and whether they can support a fit at all.
   const RecordAssessment assessment = AssessRecords(records, config);
+  std::vector<double> origins;
+  for (const auto& record : records) origins.push_back(TimeOrigin(config, record));
   FitModel model(scene, records, config, assessment.weights);
   std::vector<double> start(model.parameters());
   for (int i = 0; i < model.parameters(); ++i) start[i] = model.Unit(i, model.free(i).start);
   if (!assessment.degenerate.empty()) {
     FitResult result = DegenerateResult(model, assessment, start);
+    result.time_origins_s = origins;
     result.summary.wall_time_s = elapsed();
     return result;
   }
   FitResult result;
+  result.time_origins_s = origins;
   auto& summary = result.summary;
   const auto fail = [&](const std::string& message) {
     summary.message = message;

@@ -192,6 +192,9 @@ struct FitResult {
   std::vector<std::string> quantity_names;
   Eigen::MatrixXd correlation;  // over quantity_names
   std::vector<LocalMinimum> minima;
+  // Per record: the record time (s) that is the model's t = 0 (TimeOrigin). The window, traces and
+  // plots are in record time; bite_time and the scene's torque times count from the origin.
+  std::vector<double> time_origins_s;
   FitSummary summary;
 };
 
@@ -214,9 +217,14 @@ std::vector<double> CramerRaoBound(const driveline::Scene& scene, const Oscillog
                                    const FitConfig& config, const std::vector<double>& noise_Nm,
                                    const FitOptions& options);
 
-// Simulated torque of each channel's link at the record times in [begin, end); the scene's
-// parameters as given. Returns false with a reason when the scene is invalid or the solver fails.
-bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record,
+// The record time that is the model's time zero: [fit] time_origin, else the record's first
+// sample (a logger's absolute time fits like a record that starts at 0).
+double TimeOrigin(const FitConfig& config, const Oscillogram& record);
+
+// Simulated torque of each channel's link at the record times in [begin, end), the model's time
+// being record time − origin_s; the scene's parameters as given. Returns false with a reason when
+// the scene is invalid or the solver fails.
+bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, double origin_s,
                       const std::vector<ChannelSpec>& channels, int begin, int end,
                       std::vector<Eigen::VectorXd>* torques, std::string* why);
 

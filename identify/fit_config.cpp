@@ -120,6 +120,16 @@ void ValidateFitConfig(const FitConfig& config, const std::vector<Oscillogram>& 
                        std::to_string(kMinRecordSamples));
     }
   }
+  if (config.time_origin_s) {
+    for (const auto& record : records) {
+      if (!(std::isfinite(*config.time_origin_s) &&
+            *config.time_origin_s <= record.time_s.front())) {
+        throw InputError(where + ": time_origin " + FormatNumber(*config.time_origin_s) +
+                         " s must be finite and not after the first sample (" +
+                         FormatNumber(record.time_s.front()) + " s) of " + record.source);
+      }
+    }
+  }
   if (config.scan_points < 0) throw InputError(where + ": scan must be >= 0");
   if (config.starts < 1) throw InputError(where + ": starts must be >= 1");
 }
@@ -149,7 +159,8 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
   config.window_start_s = span_first;
   config.window_end_s = span_last;
   if (const auto fit = top.OptionalTable("fit")) {
-    fit->RequireOnlyKeys({"window", "scan", "starts", "seed"});
+    fit->RequireOnlyKeys({"window", "scan", "starts", "seed", "time_origin"});
+    if (fit->Has("time_origin")) config.time_origin_s = fit->RequiredNumber("time_origin");
     if (fit->Has("window")) {
       const auto window = fit->NumberArray("window");
       if (window.size() != 2) fit->Fail("window", "must be [start, end] in s");

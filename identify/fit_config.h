@@ -8,6 +8,8 @@
 //   scan = 128             # coarse scan points over the scanned parameters (default 128; 0 = none)
 //   starts = 4             # distinct starts refined by Ceres (default 4, >= 1)
 //   seed = 1               # of the scan's Latin hypercube
+//   time_origin = 7.25     # s, record time of the model's t = 0 (default: each record's first
+//                          # sample); bite_time counts from it, the window is in record time
 //   [set]                  # known values replacing the scene's, not fitted
 //   "lower_spindle.gap_position" = 1.0
 //   [[free]]               # one per fitted scene parameter (names: driveline/scene_parameter.h)
@@ -79,6 +81,9 @@ struct FitConfig {
   int scan_points = kDefaultScanPoints;
   int starts = kDefaultStarts;
   unsigned seed = 1;
+  // [fit] time_origin: the record time (s) that is the model's time zero in every record; none:
+  // each record's first sample.
+  std::optional<double> time_origin_s;
   // [set]: known values replacing the scene's, not fitted (ApplySetValues puts them in a scene).
   std::vector<std::pair<driveline::SceneParameter, double>> set;
 };

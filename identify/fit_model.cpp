@@ -134,8 +134,8 @@ bool FitModel::Torques(const double* u, std::vector<Eigen::VectorXd>* m, int onl
     const Block& first = blocks_[r * channels];
     ++simulations_;
     std::string why;
-    if (!SimulateChannels(scene, records_[r], config_.channels, first.begin, first.end, &torques,
-                          &why)) {
+    if (!SimulateChannels(scene, records_[r], TimeOrigin(config_, records_[r]), config_.channels,
+                          first.begin, first.end, &torques, &why)) {
       last_failure_ = records_.size() > 1 ? records_[r].source + ": " + why : why;
       return false;
     }

@@ -30,6 +30,10 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
   json doc;
   doc["scene"] = scene_file;
   doc["records"] = record_files;
+  doc["time_origins_s"] = result.time_origins_s;
+  doc["times"] =
+      "window, trace and plot times are record times; bite_time and the scene's torque times "
+      "count from each record's time origin (time_origins_s)";
   const auto& s = result.summary;
   doc["verdict"] = s.success ? s.verdict : "failed";
   doc["warnings"] = s.warnings;
