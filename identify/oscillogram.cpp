@@ -1,6 +1,7 @@
 #include "identify/oscillogram.h"
 
 #include <algorithm>
+#include <cctype>
 
 #include "io/csv.h"
 #include "io/input_error.h"
@@ -9,28 +10,71 @@
 namespace millkit::identify {
 namespace {
 
+// The time column's accepted names, compared without case and blanks.
+bool IsTimeName(std::string name) {
+  std::string key;
+  for (const char c : name) {
+    if (c != ' ' && c != '\t')
+      key += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  }
+  return key == "time" || key == "t" || key == "time_s" || key == "time[s]" || key == "t[s]";
+}
+
 Oscillogram FromTable(const CsvTable& table) {
-  if (table.columns.empty() || table.columns[0] != "time") {
-    throw InputError(table.source + ": line 1: the first column must be named 'time' (SPEC §3)");
+  const std::string header = table.source + ": line " + std::to_string(table.header_line);
+  int time_column = -1;
+  for (size_t j = 0; j < table.columns.size(); ++j) {
+    if (!IsTimeName(table.columns[j])) continue;
+    if (time_column >= 0) {
+      throw InputError(header + ": two time columns, '" + table.columns[time_column] + "' and '" +
+                       table.columns[j] + "'");
+    }
+    time_column = static_cast<int>(j);
+  }
+  if (time_column < 0) {
+    std::string seen;
+    for (const auto& c : table.columns) seen += (seen.empty() ? "" : ", ") + c;
+    throw InputError(header +
+                     ": no time column; expected one named 'time', 't', 'Time', "
+                     "'time_s' or 'Time [s]' (seen: " +
+                     seen + ")");
   }
   if (table.columns.size() < 2) {
-    throw InputError(table.source + ": line 1: no channel column after 'time'");
+    throw InputError(header + ": no channel column besides '" + table.columns[time_column] + "'");
   }
   if (static_cast<int>(table.rows.size()) < kMinRecordSamples) {
     throw InputError(table.source + ": " + std::to_string(table.rows.size()) +
                      " samples; a record needs at least " + std::to_string(kMinRecordSamples));
   }
-  RequireStrictlyIncreasing(table, 0);
+  // Time in s, or in ms when its units row says so.
+  double time_scale = 1.0;
+  if (!table.units.empty()) {
+    std::string unit = table.units[time_column];
+    unit.erase(std::remove_if(unit.begin(), unit.end(),
+                              [](char c) { return c == '[' || c == ']' || c == ' '; }),
+               unit.end());
+    if (unit == "ms") {
+      time_scale = 1e-3;
+    } else if (!unit.empty() && unit != "s") {
+      throw InputError(table.source + ": units row: time unit '" + table.units[time_column] +
+                       "' is not s or ms");
+    }
+  }
+  RequireStrictlyIncreasing(table, time_column);
   Oscillogram record;
   record.source = table.source;
-  record.time_s = table.ColumnValues(0);
+  record.time_s = table.ColumnValues(time_column);
+  for (double& t : record.time_s) t *= time_scale;
   record.line_numbers = table.line_numbers;
-  for (size_t j = 1; j < table.columns.size(); ++j) {
+  record.notes = table.notes;
+  for (size_t j = 0; j < table.columns.size(); ++j) {
+    if (static_cast<int>(j) == time_column) continue;
     if (std::find(record.channels.begin(), record.channels.end(), table.columns[j]) !=
         record.channels.end()) {
-      throw InputError(table.source + ": line 1: column '" + table.columns[j] + "' appears twice");
+      throw InputError(header + ": column '" + table.columns[j] + "' appears twice");
     }
     record.channels.push_back(table.columns[j]);
+    record.units.push_back(table.units.empty() ? "" : table.units[j]);
     record.values.push_back(table.ColumnValues(static_cast<int>(j)));
   }
   return record;

@@ -1,5 +1,7 @@
-// Measured oscillograms (SPEC.md §3): a CSV with a header row, first column `time` (s, strictly
-// increasing), further columns named channels (strain-gauge torque, N·m after calibration).
+// Measured oscillograms: a table (io/csv.h: the dialects of spreadsheet and logger exports) with a
+// time column named `time`, `t`, `Time`, `time_s` or `Time [s]` (s, or ms when a units row says so;
+// strictly increasing; it need not start at 0) and further columns named channels (strain-gauge
+// torque, N·m after calibration). The user reference is docs/identify.md.
 #pragma once
 
 #include <filesystem>
@@ -14,6 +16,8 @@ struct Oscillogram {
   std::vector<std::string> channels;        // column names after `time`
   std::vector<std::vector<double>> values;  // values[channel][sample]
   std::vector<int> line_numbers;            // file line of each sample (1-based)
+  std::vector<std::string> units;           // per channel, from a units row ("" when none)
+  std::vector<std::string> notes;           // what the reader skipped (text columns)
 
   int ChannelIndex(const std::string& name) const;  // −1 when absent
   // Indices of the samples with time in [start, end].

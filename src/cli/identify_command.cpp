@@ -82,6 +82,8 @@ void RunIdentify(const IdentifyArgs& args) {
   std::string record_list;
   for (const auto& path : args.data) {
     records.push_back(identify::LoadOscillogram(path));
+    for (const auto& note : records.back().notes)
+      std::cerr << "millkit identify: note: " << note << "\n";
     record_list += (record_list.empty() ? "" : ", ") + path;
   }
   const identify::FitConfig config = args.config.empty()

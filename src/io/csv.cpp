@@ -11,19 +11,96 @@ namespace millkit {
 namespace {
 
 std::string Trim(const std::string& s) {
-  const auto first = s.find_first_not_of(" \t\r\"");
+  const auto first = s.find_first_not_of(" \t\r");
   if (first == std::string::npos) return "";
-  const auto last = s.find_last_not_of(" \t\r\"");
+  const auto last = s.find_last_not_of(" \t\r");
   return s.substr(first, last - first + 1);
 }
 
-std::vector<std::string> SplitCells(const std::string& line) {
+std::string Line(const std::string& source, int line_number) {
+  return source + ": line " + std::to_string(line_number);
+}
+
+// Splits a line at `separator` outside double quotes; a quoted cell loses its quotes ("" is one
+// quote). Cells are trimmed of blanks.
+std::vector<std::string> SplitCells(const std::string& line, char separator) {
   std::vector<std::string> cells;
   std::string cell;
-  std::istringstream in(line);
-  while (std::getline(in, cell, ',')) cells.push_back(Trim(cell));
-  if (!line.empty() && line.back() == ',') cells.push_back("");
+  bool quoted = false;
+  for (size_t k = 0; k < line.size(); ++k) {
+    const char c = line[k];
+    if (c == '"') {
+      if (quoted && k + 1 < line.size() && line[k + 1] == '"') {
+        cell += '"';
+        ++k;
+      } else {
+        quoted = !quoted;
+      }
+    } else if (c == separator && !quoted) {
+      cells.push_back(Trim(cell));
+      cell.clear();
+    } else if (c != '\r') {
+      cell += c;
+    }
+  }
+  cells.push_back(Trim(cell));
   return cells;
+}
+
+// The separator of a header line: the one of ';', tab and ',' that appears outside quotes.
+char DetectSeparator(const std::string& header, const std::string& where) {
+  std::string seen;
+  bool quoted = false;
+  for (const char c : header) {
+    if (c == '"') quoted = !quoted;
+    if (!quoted && (c == ';' || c == '\t' || c == ',') && seen.find(c) == std::string::npos) {
+      seen += c;
+    }
+  }
+  if (seen.size() > 1) {
+    std::string names;
+    for (const char c : seen)
+      names += std::string(names.empty() ? "" : " and ") +
+               (c == '\t' ? "tab" : std::string("'") + c + "'");
+    throw InputError(where + ": the header mixes the separators " + names +
+                     "; use one of ',', ';' or tab");
+  }
+  return seen.empty() ? ',' : seen[0];
+}
+
+// Text that reads as a number (NaN and infinities included); with a decimal comma allowed when the
+// separator is not ','.
+bool LooksNumeric(std::string cell, bool decimal_comma) {
+  if (cell.empty()) return false;
+  if (decimal_comma) {
+    const auto comma = cell.find(',');
+    if (comma != std::string::npos) cell[comma] = '.';
+  }
+  const char* begin = cell.data();
+  const char* end = begin + cell.size();
+  if (*begin == '+') ++begin;
+  double value = 0.0;
+  const auto [ptr, ec] = std::from_chars(begin, end, value);
+  return ptr == end && (ec == std::errc() || ec == std::errc::result_out_of_range);
+}
+
+// A finite number, or nothing; with a decimal comma allowed when the separator is not ','.
+bool ParseNumber(std::string cell, bool decimal_comma, double* value) {
+  if (cell.empty()) return false;
+  if (decimal_comma) {
+    const auto comma = cell.find(',');
+    if (comma != std::string::npos) {
+      if (cell.find('.') != std::string::npos || cell.find(',', comma + 1) != std::string::npos) {
+        return false;
+      }
+      cell[comma] = '.';
+    }
+  }
+  const char* begin = cell.data();
+  const char* end = begin + cell.size();
+  if (*begin == '+') ++begin;
+  const auto [ptr, ec] = std::from_chars(begin, end, *value);
+  return ec == std::errc() && ptr == end && std::isfinite(*value);
 }
 
 }  // namespace
@@ -56,45 +133,93 @@ CsvTable ParseCsv(const std::string& text, const std::string& source) {
   std::string line;
   int line_number = 0;
   bool have_header = false;
+  bool trailing_separator = false;
+  char separator = ',';
+  std::vector<std::vector<std::string>> raw;  // data cells as text, decided per column below
   while (std::getline(in, line)) {
     ++line_number;
+    // A UTF-8 byte-order mark (spreadsheet and logger exports) is not part of the first name.
+    if (line_number == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
     const std::string trimmed = Trim(line);
     if (trimmed.empty() || trimmed[0] == '#') continue;
-    std::vector<std::string> cells = SplitCells(line);
     if (!have_header) {
+      separator = DetectSeparator(line, Line(source, line_number));
+      std::vector<std::string> cells = SplitCells(line, separator);
+      // A separator at the end of every line (some exports) makes no column.
+      if (cells.size() > 1 && cells.back().empty()) {
+        cells.pop_back();
+        trailing_separator = true;
+      }
       for (size_t j = 0; j < cells.size(); ++j) {
         if (cells[j].empty()) {
-          throw InputError(source + ": line " + std::to_string(line_number) + ": header column " +
-                           std::to_string(j + 1) + " has no name");
+          throw InputError(Line(source, line_number) + ": header column " + std::to_string(j + 1) +
+                           " has no name");
         }
       }
       table.columns = cells;
+      table.header_line = line_number;
       have_header = true;
       continue;
     }
+    std::vector<std::string> cells = SplitCells(line, separator);
+    if (trailing_separator && cells.size() == table.columns.size() + 1 && cells.back().empty()) {
+      cells.pop_back();
+    }
     if (cells.size() != table.columns.size()) {
-      throw InputError(source + ": line " + std::to_string(line_number) + ": " +
-                       std::to_string(cells.size()) + " cells, the header has " +
-                       std::to_string(table.columns.size()));
+      throw InputError(Line(source, line_number) + ": " + std::to_string(cells.size()) +
+                       " cells, the header has " + std::to_string(table.columns.size()));
     }
-    std::vector<double> row(cells.size());
-    for (size_t j = 0; j < cells.size(); ++j) {
-      const std::string& cell = cells[j];
-      double value = 0.0;
-      const char* begin = cell.data();
-      const char* end = begin + cell.size();
-      if (!cell.empty() && *begin == '+') ++begin;
-      const auto [ptr, ec] = std::from_chars(begin, end, value);
-      if (cell.empty() || ec != std::errc() || ptr != end || !std::isfinite(value)) {
-        throw InputError(source + ": line " + std::to_string(line_number) + ", column '" +
-                         table.columns[j] + "': '" + cell + "' is not a finite number");
-      }
-      row[j] = value;
-    }
-    table.rows.push_back(std::move(row));
+    raw.push_back(std::move(cells));
     table.line_numbers.push_back(line_number);
   }
   if (!have_header) throw InputError(source + ": empty file, expected a header row");
+
+  const bool decimal_comma = separator != ',';
+  double value = 0.0;
+  // A units row: the first row after the header when none of its cells reads as a number.
+  if (!raw.empty()) {
+    bool any_number = false;
+    for (const auto& cell : raw.front())
+      any_number = any_number || LooksNumeric(cell, decimal_comma);
+    if (!any_number) {
+      table.units = raw.front();
+      raw.erase(raw.begin());
+      table.line_numbers.erase(table.line_numbers.begin());
+    }
+  }
+  // A text column (a coil ID, a comment) is one none of whose cells reads as a number: skipped,
+  // with a note. Any other cell that is not a finite number is an error.
+  std::vector<bool> keep(table.columns.size(), true);
+  for (size_t j = 0; j < table.columns.size(); ++j) {
+    bool any_number = false;
+    for (const auto& row : raw) any_number = any_number || LooksNumeric(row[j], decimal_comma);
+    if (!any_number && !raw.empty()) {
+      keep[j] = false;
+      table.notes.push_back(source + ": column '" + table.columns[j] +
+                            "' holds no number and is skipped");
+    }
+  }
+  std::vector<std::string> columns, units;
+  for (size_t j = 0; j < table.columns.size(); ++j) {
+    if (!keep[j]) continue;
+    columns.push_back(table.columns[j]);
+    if (!table.units.empty()) units.push_back(table.units[j]);
+  }
+  for (size_t i = 0; i < raw.size(); ++i) {
+    std::vector<double> row;
+    row.reserve(columns.size());
+    for (size_t j = 0; j < raw[i].size(); ++j) {
+      if (!keep[j]) continue;
+      if (!ParseNumber(raw[i][j], decimal_comma, &value)) {
+        throw InputError(Line(source, table.line_numbers[i]) + ", column '" + table.columns[j] +
+                         "': '" + raw[i][j] + "' is not a finite number");
+      }
+      row.push_back(value);
+    }
+    table.rows.push_back(std::move(row));
+  }
+  table.columns = std::move(columns);
+  table.units = std::move(units);
   return table;
 }
 

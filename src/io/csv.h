@@ -1,6 +1,10 @@
-// Numeric CSV tables: a header row of column names, then rows of numbers (SPEC §3).
-// Every cell must parse as a finite number; a bad cell is an InputError naming the file, the row
-// (1-based line number in the file) and the column.
+// Numeric tables as spreadsheets and data loggers export them: a header row of column names, an
+// optional units row, then rows of numbers. Accepted dialects: a UTF-8 byte-order mark; ',', ';'
+// or tab as the separator (the one the header uses; a header mixing them is an error); a decimal
+// comma when the separator is not ','; quoted cells ("" for a quote); a separator at the end of
+// every line; CRLF line ends; blank lines and '#' comment lines. A column none of whose cells is
+// a number (a coil ID) is skipped with a note. Any other cell that is not a finite number is an
+// InputError naming the file, the line (1-based) and the column.
 #pragma once
 
 #include <filesystem>
@@ -10,10 +14,13 @@
 namespace millkit {
 
 struct CsvTable {
-  std::string source;                      // file name, for error messages
-  std::vector<std::string> columns;        // header names, trimmed
-  std::vector<std::vector<double>> rows;   // rows[i][j]: data row i, column j
-  std::vector<int> line_numbers;           // line in the file of each data row (1-based)
+  std::string source;                     // file name, for error messages
+  std::vector<std::string> columns;       // header names, trimmed, unquoted
+  std::vector<std::string> units;         // from a units row (empty when there is none)
+  std::vector<std::string> notes;         // what the reader skipped, for the user
+  int header_line = 0;                    // line of the header row (1-based)
+  std::vector<std::vector<double>> rows;  // rows[i][j]: data row i, column j
+  std::vector<int> line_numbers;          // line in the file of each data row (1-based)
 
   // Index of the column named `name`; throws InputError naming the file when it is absent.
   int Column(const std::string& name) const;

@@ -1,13 +1,14 @@
 // Oscillogram records (SPEC §3): bad records are rejected naming file, row and column.
 #include "identify/oscillogram.h"
 
+#include <algorithm>
 #include <catch2/catch.hpp>
 
 #include "io/input_error.h"
 
 using namespace millkit::identify;
-using millkit::InputError;
 using Catch::Matchers::Contains;
+using millkit::InputError;
 
 namespace {
 
@@ -48,7 +49,8 @@ TEST_CASE("A time that does not increase is rejected with its line") {
 }
 
 TEST_CASE("A record whose first column is not time, or without channels, is rejected") {
-  CHECK_THROWS_WITH(ParseOscillogram(Record(20, "t,upper"), "rec.csv"), Contains("'time'"));
+  CHECK_THROWS_WITH(ParseOscillogram(Record(20, "x,upper"), "rec.csv"),
+                    Contains("line 1") && Contains("no time column") && Contains("'time'"));
   std::string only_time = "time\n";
   for (int k = 0; k < 20; ++k) only_time += std::to_string(k) + "\n";
   CHECK_THROWS_WITH(ParseOscillogram(only_time, "rec.csv"), Contains("no channel"));
@@ -72,4 +74,128 @@ TEST_CASE("Records fitted together are named by file stem, numbered where two st
   records[1].source = "shift2/bite.csv";
   records[2].source = "/data/pass3.csv";
   CHECK(RecordLabels(records) == std::vector<std::string>{"bite#1", "bite#2", "pass3"});
+}
+
+namespace {
+
+// The same record in the plain dialect and rewritten by `transform` of each data row's cells.
+struct Dialect {
+  std::string text;
+  Oscillogram plain;
+};
+
+Oscillogram Plain() {
+  std::string text = "time,upper,lower\n";
+  for (int k = 0; k < 20; ++k) {
+    text += std::to_string(7.25 + k * 0.0005) + "," + std::to_string(1000.5 * k - 3.25) + "," +
+            std::to_string(-250.125 * k) + "\n";
+  }
+  return ParseOscillogram(text, "plain.csv");
+}
+
+// Writes the plain record's numbers with `separator`, a decimal comma when asked.
+std::string Rewrite(const Oscillogram& plain, const std::string& header, char separator,
+                    bool decimal_comma, const std::string& units_row = "",
+                    const std::string& extra_cell = "", const std::string& line_end = "\n") {
+  std::string text = header + line_end;
+  if (!units_row.empty()) text += units_row + line_end;
+  const auto number = [&](double v) {
+    std::string s = std::to_string(v);
+    if (decimal_comma) std::replace(s.begin(), s.end(), '.', ',');
+    return s;
+  };
+  for (size_t k = 0; k < plain.time_s.size(); ++k) {
+    text += number(plain.time_s[k]);
+    for (const auto& column : plain.values) text += separator + number(column[k]);
+    text += extra_cell + line_end;
+  }
+  return text;
+}
+
+void CheckSame(const Oscillogram& a, const Oscillogram& b) {
+  REQUIRE(a.channels == b.channels);
+  CHECK(a.time_s == b.time_s);
+  CHECK(a.values == b.values);
+}
+
+}  // namespace
+
+TEST_CASE("logger dialects: each feature alone reads the same record") {
+  const Oscillogram plain = Plain();
+  SECTION("a byte-order mark") {
+    CheckSame(plain, ParseOscillogram(
+                         "\xEF\xBB\xBF" + Rewrite(plain, "time,upper,lower", ',', false), "b.csv"));
+  }
+  SECTION("semicolons") {
+    CheckSame(plain, ParseOscillogram(Rewrite(plain, "time;upper;lower", ';', false), "s.csv"));
+  }
+  SECTION("a decimal comma with semicolons") {
+    CheckSame(plain, ParseOscillogram(Rewrite(plain, "time;upper;lower", ';', true), "d.csv"));
+  }
+  SECTION("tabs") {
+    CheckSame(plain, ParseOscillogram(Rewrite(plain, "time\tupper\tlower", '\t', false), "t.csv"));
+  }
+  SECTION("quoted headers") {
+    CheckSame(plain, ParseOscillogram(Rewrite(plain, "\"time\",\"upper\",\"lower\"", ',', false),
+                                      "q.csv"));
+  }
+  SECTION("a units row") {
+    const auto record =
+        ParseOscillogram(Rewrite(plain, "time,upper,lower", ',', false, "s,N*m,N*m"), "u.csv");
+    CheckSame(plain, record);
+    CHECK(record.units == std::vector<std::string>{"N*m", "N*m"});
+  }
+  SECTION("a trailing separator and CRLF") {
+    CheckSame(plain,
+              ParseOscillogram(Rewrite(plain, "time,upper,lower,", ',', false, "", ",", "\r\n"),
+                               "c.csv"));
+  }
+  SECTION("a text column is skipped with a note") {
+    std::string text = "time,coil,upper,lower\n";
+    for (size_t k = 0; k < plain.time_s.size(); ++k) {
+      text += std::to_string(plain.time_s[k]) + ",C-" + std::to_string(4711 + k) + "," +
+              std::to_string(plain.values[0][k]) + "," + std::to_string(plain.values[1][k]) + "\n";
+    }
+    const auto record = ParseOscillogram(text, "x.csv");
+    CheckSame(plain, record);
+    REQUIRE(record.notes.size() == 1);
+    CHECK_THAT(record.notes[0], Contains("coil") && Contains("skipped"));
+  }
+  SECTION("time named t, Time, time_s or Time [s]") {
+    for (const std::string name : {"t", "Time", "time_s", "Time [s]"}) {
+      CheckSame(plain,
+                ParseOscillogram(Rewrite(plain, name + ",upper,lower", ',', false), "n.csv"));
+    }
+  }
+  SECTION("time in ms by its units row") {
+    Oscillogram ms = plain;
+    for (double& t : ms.time_s) t *= 1000.0;
+    const auto record =
+        ParseOscillogram(Rewrite(ms, "time,upper,lower", ',', false, "ms,N*m,N*m"), "m.csv");
+    for (size_t k = 0; k < plain.time_s.size(); ++k)
+      CHECK(record.time_s[k] == Approx(plain.time_s[k]).epsilon(1e-15));
+  }
+}
+
+TEST_CASE("logger dialects: BOM semicolons decimal comma and units row together read the same") {
+  const Oscillogram plain = Plain();
+  const std::string text = "\xEF\xBB\xBF" + Rewrite(plain, "\"Time [s]\";\"upper\";\"lower\";", ';',
+                                                    true, "s;kN*m;kN*m;", ";", "\r\n");
+  const auto record = ParseOscillogram(text, "all.csv");
+  CheckSame(plain, record);
+  CHECK(record.units == std::vector<std::string>{"kN*m", "kN*m"});
+}
+
+TEST_CASE("logger dialects: what is ambiguous is an error naming the line") {
+  CHECK_THROWS_WITH(ParseOscillogram("time;upper,lower\n0;1,2\n", "m.csv"),
+                    Contains("m.csv: line 1") && Contains("mixes the separators"));
+  std::string two_times = "time,t,upper\n";
+  for (int k = 0; k < 20; ++k) two_times += std::to_string(k) + "," + std::to_string(k) + ",1\n";
+  CHECK_THROWS_WITH(ParseOscillogram(two_times, "two.csv"),
+                    Contains("two.csv: line 1") && Contains("two time columns"));
+  std::string bad_unit = "time,upper\nmin,N*m\n";
+  for (int k = 0; k < 20; ++k) bad_unit += std::to_string(k) + ",1\n";
+  CHECK_THROWS_WITH(ParseOscillogram(bad_unit, "u.csv"), Contains("time unit 'min'"));
+  // A decimal comma in a comma-separated file is a cell count error, not a silent misread.
+  CHECK_THROWS_WITH(ParseOscillogram("time,upper\n0,1,5\n", "c.csv"), Contains("line 2: 3 cells"));
 }
