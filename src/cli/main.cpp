@@ -10,6 +10,7 @@
 
 int main(int argc, char** argv) {
   CLI::App app{"MillKit: rolling-mill drive-line dynamics, identification and leveller setpoints"};
+  app.set_version_flag("--version", std::string("millkit ") + MILLKIT_VERSION);
   app.require_subcommand(1);
   millkit::cli::AddSimulateCommand(app);
   millkit::cli::AddLevellerCommand(app);
@@ -22,6 +23,8 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     app.exit(e);
