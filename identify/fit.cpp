@@ -456,6 +456,7 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   std::vector<double> origins;
   for (const auto& record : records) origins.push_back(TimeOrigin(config, record));
   FitModel model(scene, records, config, assessment.weights);
+  model.set_progress(options.progress);
   std::vector<double> start(model.parameters());
   for (int i = 0; i < model.parameters(); ++i) start[i] = model.Unit(i, model.free(i).start);
   if (!assessment.degenerate.empty()) {
@@ -485,6 +486,7 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   }
   // Its values, standard errors and identifiability; then the verdict.
   bool lower_found = false;
+  model.set_activity("standard errors");
   if (!DescribeBest(model, search, assessment, options, &result, &lower_found)) {
     return fail("the solution does not simulate: " + model.last_failure());
   }

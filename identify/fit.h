@@ -42,6 +42,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -111,6 +112,10 @@ struct FitOptions {
   double misfit_z = 3.0;
   double ambiguity_chi2 = 4.0;
   double distinct_minimum_se = 3.0;
+
+  // Called after every simulation with what the fit is doing and the simulations so far (the
+  // command line throttles it into a progress line); none when empty.
+  std::function<void(const std::string& activity, long simulations)> progress;
 
   // Throws InputError naming the option and its rule.
   void Validate() const;

@@ -133,6 +133,7 @@ bool FitModel::Torques(const double* u, std::vector<Eigen::VectorXd>* m, int onl
     // Blocks of a record are consecutive, in config channel order.
     const Block& first = blocks_[r * channels];
     ++simulations_;
+    if (progress_) progress_(activity_, simulations_);
     std::string why;
     if (!SimulateChannels(scene, records_[r], TimeOrigin(config_, records_[r]), config_.channels,
                           first.begin, first.end, &torques, &why)) {

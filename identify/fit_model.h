@@ -18,6 +18,7 @@
 #include <ceres/ceres.h>
 
 #include <Eigen/Dense>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -80,6 +81,11 @@ class FitModel {
   const Oscillogram& record(int r) const { return records_[r]; }
   const std::string& label(int r) const { return labels_[r]; }
   long simulations() const { return simulations_; }
+  // What the fit is doing, for the progress callback (called after every simulation).
+  void set_progress(std::function<void(const std::string&, long)> progress) {
+    progress_ = std::move(progress);
+  }
+  void set_activity(std::string activity) const { activity_ = std::move(activity); }
   const std::string& last_failure() const { return last_failure_; }
 
   double Physical(int s, double u) const { return slots_[s].map.Physical(u); }
@@ -125,6 +131,8 @@ class FitModel {
   std::vector<double> onsets_;
   int residuals_ = 0;
   mutable long simulations_ = 0;
+  std::function<void(const std::string&, long)> progress_;
+  mutable std::string activity_ = "starting";
   mutable std::string last_failure_;
 };
 

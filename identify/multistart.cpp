@@ -219,10 +219,13 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
   // where impact timing decides; the best preselect_factor × starts go through that stage's fit.
   const auto search_from = [&](const FitConfig& settings, const std::vector<double>& from) {
     int points = 0;
+    model->set_activity("scan of " + std::to_string(settings.scan_points) + " points");
     model->SetStage(ContinuationStages(*model, options).front());
     auto starts = ScanStarts(*model, settings, options, from,
                              settings.starts * options.preselect_factor, &points);
+    model->set_activity("choosing " + std::to_string(settings.starts) + " starts");
     starts = PreselectStarts(model, options, starts, settings.starts);
+    model->set_activity("refining " + std::to_string(starts.size()) + " starts");
     for (auto fit : RefineStarts(model, options, starts)) {
       fit.start += search.starts;
       minima.push_back(std::move(fit));
@@ -247,6 +250,7 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
     search_from(wider, minima[search.best].u);
   }
   // Basin hopping: a valley next door that every start missed.
+  model->set_activity("basin hops");
   for (auto& point : HopPoints(*model, minima[search.best].u, minima[search.best].cost, options)) {
     LocalFit fit = Refine(*model, options, std::move(point), true, options.max_iterations);
     fit.start = -1;
@@ -255,6 +259,7 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
   search.best = lowest();
   // A coarse look along every parameter's axis from the best minimum; a probe below it is a
   // valley the starts missed: Levenberg–Marquardt goes on from there.
+  model->set_activity("probing the best minimum");
   search.probes = ProfileProbes(*model, minima[search.best].u, options);
   for (int restart = 0; restart < options.profile_restarts; ++restart) {
     const ProfileProbe* lower = nullptr;

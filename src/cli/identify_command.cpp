@@ -20,6 +20,7 @@
 #include "io/atomic_file.h"
 #include "io/input_error.h"
 #include "io/output_files.h"
+#include "io/progress_line.h"
 
 namespace millkit::cli {
 namespace {
@@ -31,6 +32,7 @@ struct IdentifyArgs {
   std::string out;
   std::string plot;
   std::string trace;
+  bool quiet = false;
 };
 
 std::string ParameterTable(const identify::FitResult& result, bool several_records) {
@@ -90,7 +92,13 @@ void RunIdentify(const IdentifyArgs& args) {
                                          ? identify::DefaultFitConfig(scene, records)
                                          : identify::LoadFitConfig(args.config, records, scene);
   identify::ApplySetValues(config, &scene);
-  const auto result = identify::Fit(scene, records, config, identify::FitOptions{});
+  identify::FitOptions options;
+  ProgressLine progress(args.quiet ? nullptr : &std::cerr, "identify");
+  options.progress = [&progress](const std::string& activity, long simulations) {
+    progress.Update(activity + ", " + std::to_string(simulations) + " simulations");
+  };
+  const auto result = identify::Fit(scene, records, config, options);
+  progress.Finish();
   std::cerr << result.summary.BriefReport() << "\n";
   if (!result.summary.success) {
     throw SolverFailure(record_list + ": " + result.summary.message);
@@ -153,6 +161,7 @@ void AddIdentifyCommand(CLI::App& app) {
   command->add_option("--out", args->out, "Fit result JSON (written atomically)")->required();
   command->add_option("--plot", args->plot, "SVG of measured vs fitted torque and residual");
   command->add_option("--trace", args->trace, "CSV of measured, fitted and residual per channel");
+  command->add_flag("--quiet", args->quiet, "No progress line on stderr");
   command->callback([args] { RunIdentify(*args); });
 
   auto synth = std::make_shared<SynthesizeArgs>();
