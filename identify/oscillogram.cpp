@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 
+#include "identify/comtrade.h"
 #include "io/csv.h"
 #include "io/input_error.h"
 #include "io/toml_section.h"
@@ -93,7 +94,13 @@ std::pair<int, int> Oscillogram::WindowRange(double start, double end) const {
   return {static_cast<int>(first - time_s.begin()), static_cast<int>(last - time_s.begin())};
 }
 
-Oscillogram LoadOscillogram(const std::filesystem::path& path) { return FromTable(ReadCsv(path)); }
+Oscillogram LoadOscillogram(const std::filesystem::path& path) {
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (extension == ".cfg") return LoadComtrade(path);
+  return FromTable(ReadCsv(path));
+}
 
 Oscillogram ParseOscillogram(const std::string& text, const std::string& source) {
   return FromTable(ParseCsv(text, source));

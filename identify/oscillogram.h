@@ -27,7 +27,8 @@ struct Oscillogram {
 // Fewer samples than this cannot constrain a fit.
 inline constexpr int kMinRecordSamples = 16;
 
-// Reads and checks a record. Throws InputError naming the file, row and column for a cell that is
+// Reads and checks a record: a table (above), or a COMTRADE .cfg with its .dat
+// (identify/comtrade.h). Throws InputError naming the file, row and column for a cell that is
 // not a finite number, a time that does not strictly increase, a first column not named `time`,
 // no channel column, or fewer than kMinRecordSamples rows.
 Oscillogram LoadOscillogram(const std::filesystem::path& path);
