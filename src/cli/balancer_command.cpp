@@ -176,7 +176,7 @@ void PrintTable(std::ostream& out, const bal::BalancerInput& input, const bal::B
     out << buffer;
   };
   auto verdict = [](bool passes) { return passes ? std::string("passes") : std::string("FAILS"); };
-  out << "Spindle balancing device (SPEC.md §7, seed 002)\n";
+  out << "Spindle balancing device (docs/balancer.md, seed 002)\n";
   out << "Roller support\n";
   row("beta = arctan(lp/D), exact", Fixed(r.support.beta_exact_rad * kDegPerRad, 3), "deg");
   row("beta as used", Fixed(r.support.beta_rad * kDegPerRad, 3), "deg");
@@ -232,7 +232,7 @@ void AddBalancerCommand(CLI::App& app) {
   auto* command = app.add_subcommand(
       "balancer",
       "Spindle balancing device: support reactions, roller and axle loads, contact and pin "
-      "checks, and the idle hinge-gap state for a balancing force (SPEC.md §7)");
+      "checks, and the idle hinge-gap state for a balancing force (docs/balancer.md)");
   command->add_option("--config", options->config,
                       "Device TOML (every table and key required; default: the seed 002 case)");
   command->add_option("--out", options->out, "Write the result as JSON to this file (atomically)");

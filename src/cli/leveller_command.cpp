@@ -71,6 +71,7 @@ void RunForward(const ForwardArgs& args) {
   const LevellerConfig config = LoadConfig(args.geometry);
   const Linkage linkage(config.linkage);
   const CsvTable table = ReadCsv(args.in);
+  RequireUnits(table, {});
   const int c1 = table.Column(args.hydraulic ? "ah_mm" : "beta1_deg");
   const int c2 = table.Column(args.hydraulic ? "bg_mm" : "beta2_deg");
   std::string text = HeaderWith(table, {"y1_mm", "y2_mm", "y3_mm"});
@@ -154,6 +155,7 @@ void RunInverse(const InverseArgs& args) {
   const Linkage linkage(config.linkage);
   const NloptInverse nlopt_inverse(linkage, InverseOptionsFor(args.algorithm));
   const CsvTable table = ReadCsv(args.in);
+  RequireUnits(table, {});
   const int c1 = table.Column("y1_mm");
   const int c2 = table.Column("y2_mm");
   const std::vector<std::string> added =
@@ -282,7 +284,9 @@ void RunTable(const TableArgs& args) {
   TableOptions options;
   options.encoder_deg = args.encoder_deg;
   options.Validate();
-  const auto cases = ReadStripCases(ReadCsv(args.strips));
+  const CsvTable strips = ReadCsv(args.strips);
+  RequireUnits(strips, {});
+  const auto cases = ReadStripCases(strips);
   const auto rows = ComputeSetpointTable(cases, config, options);
   for (const auto& row : rows) {
     for (const auto& w : row.warnings) {
@@ -300,7 +304,7 @@ void AddLevellerCommand(CLI::App& app) {
       "leveller", "Seven-roll leveller: linkage kinematics, forces and power, setpoint tables");
   leveller->require_subcommand(1);
   const std::string geometry_help =
-      "Leveller TOML ([linkage], [hydraulic], [rolls], [machine]; default: SPEC.md §6.2, "
+      "Leveller TOML ([linkage], [hydraulic], [rolls], [machine]; docs/leveller.md; default: "
       "datasets/leveller/leveller_default.toml)";
 
   {

@@ -81,6 +81,8 @@ TorqueSource ReadTorqueTable(const TomlSection& section, const std::string& tabl
     section.Fail("table", path.string() + " must have exactly two columns: time,<torque>");
   }
   if (table.rows.empty()) section.Fail("table", path.string() + " has no data rows");
+  // A units row may say what the table holds, not change it.
+  RequireUnits(table, {{"time", {"s"}}, {table.columns[1], {"N*m", "Nm", "N·m"}}});
   RequireStrictlyIncreasing(table, 0);
   TorqueSource source;
   source.times_s = table.ColumnValues(0);
@@ -102,8 +104,7 @@ Scene LoadScene(const std::string& path) {
   if (!scene_section) root.Fail("scene", "the table [scene] is required");
   scene_section->RequireOnlyKeys({"name", "duration", "sample_rate", "contact", "band"});
   scene.name = scene_section->String("name", std::filesystem::path(path).stem().string());
-  scene.duration_s =
-      scene_section->Positive("duration", scene_section->RequiredNumber("duration"));
+  scene.duration_s = scene_section->Positive("duration", scene_section->RequiredNumber("duration"));
   scene.sample_rate_Hz =
       scene_section->Positive("sample_rate", scene_section->RequiredNumber("sample_rate"));
   if (scene.duration_s * scene.sample_rate_Hz > 5e7) {
@@ -221,9 +222,9 @@ void ValidateScene(const Scene& scene) {
             where + " key 'backlash': must be >= 0");
     Require(l.gap_position >= -1.0 && l.gap_position <= 1.0,
             where + " key 'gap_position': must lie in [-1, 1]");
-    Require(l.ratio > 0.0 && std::isfinite(l.ratio),
-            where + " key 'ratio': must be > 0 (i = ω_from / ω_to; got " + FormatNumber(l.ratio) +
-                ")");
+    Require(
+        l.ratio > 0.0 && std::isfinite(l.ratio),
+        where + " key 'ratio': must be > 0 (i = ω_from / ω_to; got " + FormatNumber(l.ratio) + ")");
   }
   // Tree: n − 1 links that connect all masses (hence no cycle).
   Require(static_cast<int>(scene.links.size()) == n - 1,

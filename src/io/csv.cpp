@@ -231,6 +231,28 @@ CsvTable ReadCsv(const std::filesystem::path& path) {
   return ParseCsv(buffer.str(), path.string());
 }
 
+void RequireUnits(const CsvTable& table,
+                  const std::map<std::string, std::vector<std::string>>& accepted) {
+  for (size_t j = 0; j < table.units.size() && j < table.columns.size(); ++j) {
+    const std::string& unit = table.units[j];
+    if (unit.empty()) continue;
+    const auto it = accepted.find(table.columns[j]);
+    std::string allowed;
+    bool ok = false;
+    if (it != accepted.end()) {
+      for (const auto& a : it->second) {
+        ok = ok || a == unit;
+        allowed += (allowed.empty() ? "" : ", ") + a;
+      }
+    }
+    if (ok) continue;
+    throw InputError(
+        table.source + ": line " + std::to_string(table.header_line + 1) +
+        " (units row), column '" + table.columns[j] + "': unit '" + unit + "' is not read here" +
+        (allowed.empty() ? std::string("; give no units row") : "; this column takes " + allowed));
+  }
+}
+
 void RequireStrictlyIncreasing(const CsvTable& table, int column) {
   for (size_t i = 1; i < table.rows.size(); ++i) {
     if (!(table.rows[i][column] > table.rows[i - 1][column])) {

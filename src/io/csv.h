@@ -8,6 +8,7 @@
 #pragma once
 
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,12 @@ CsvTable ReadCsv(const std::filesystem::path& path);
 
 // Parses CSV text (used by ReadCsv and by tests); `source` names it in error messages.
 CsvTable ParseCsv(const std::string& text, const std::string& source);
+
+// A units row is honoured only where its reader checks it. Throws InputError (file, units row,
+// column) unless every column's unit is empty or one of accepted[column name]; a column missing
+// from `accepted` accepts no unit. Tables without a units row pass.
+void RequireUnits(const CsvTable& table,
+                  const std::map<std::string, std::vector<std::string>>& accepted);
 
 // Throws InputError unless column `column` strictly increases down the table (row named).
 void RequireStrictlyIncreasing(const CsvTable& table, int column);

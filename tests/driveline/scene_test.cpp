@@ -8,10 +8,10 @@
 #include "support/run_cli.h"
 
 using namespace millkit::driveline;
+using Catch::Matchers::Contains;
 using millkit::InputError;
 using millkit::testing::ScratchDir;
 using millkit::testing::WriteText;
-using Catch::Matchers::Contains;
 
 namespace {
 
@@ -159,18 +159,26 @@ TEST_CASE("A torque table must have time and one value column, increasing in tim
           "[scene][bad_input]") {
   ScratchDir dir;
   WriteText(dir / "load.csv", "time,torque\n0,0\n0.05,-10\n0.04,-20\n");
-  std::string text = Replace(kValidScene, "after = -100.0\nstart = 0.01\nrise = 0.002",
-                             "table = \"load.csv\"");
+  std::string text =
+      Replace(kValidScene, "after = -100.0\nstart = 0.01\nrise = 0.002", "table = \"load.csv\"");
   WriteText(dir / "s.toml", text);
   REQUIRE_THROWS_WITH(LoadScene((dir / "s.toml").string()),
                       Contains("load.csv: line 4") && Contains("increase strictly"));
   WriteText(dir / "load.csv", "time,torque\n0,0\n0.05,abc\n");
   REQUIRE_THROWS_WITH(LoadScene((dir / "s.toml").string()),
                       Contains("load.csv: line 3, column 'torque'"));
+  // A units row in ms would have read 50 ms as 50 s: refused, naming the unit.
+  WriteText(dir / "load.csv", "time,torque\nms,N*m\n0,0\n50,-10\n");
+  REQUIRE_THROWS_WITH(
+      LoadScene((dir / "s.toml").string()),
+      Contains("load.csv: line 2 (units row), column 'time'") && Contains("unit 'ms'"));
+  WriteText(dir / "load.csv", "time;torque\ns;N*m\n0;0\n0,05;-10\n");
+  REQUIRE_NOTHROW(LoadScene((dir / "s.toml").string()));
 }
 
 TEST_CASE("A drive with bad gains is rejected", "[scene][bad_input]") {
-  const std::string drive = "[drive]\nat = \"motor\"\nkp = 0.0\nki = 0.0\nlag = 0.01\nlimit = 1e3\n";
+  const std::string drive =
+      "[drive]\nat = \"motor\"\nkp = 0.0\nki = 0.0\nlag = 0.01\nlimit = 1e3\n";
   CHECK_THAT(LoadError(std::string(kValidScene) + drive), Contains("kp and ki cannot both be 0"));
   const std::string lag = "[drive]\nat = \"motor\"\nkp = 1.0\nki = 0.0\nlag = 0.0\nlimit = 1e3\n";
   CHECK_THAT(LoadError(std::string(kValidScene) + lag), Contains("key 'lag'"));

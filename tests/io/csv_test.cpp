@@ -4,9 +4,9 @@
 
 #include "io/input_error.h"
 
+using Catch::Matchers::Contains;
 using millkit::InputError;
 using millkit::ParseCsv;
-using Catch::Matchers::Contains;
 
 TEST_CASE("A numeric CSV is read with its header and rows", "[csv]") {
   const auto table = ParseCsv("time, a,b\n0,1,2\n# comment\n\n0.5,-1e3,+4\n", "x.csv");
@@ -44,4 +44,15 @@ TEST_CASE("A time column that does not increase strictly is rejected with its li
 
 TEST_CASE("An empty file is rejected", "[csv]") {
   REQUIRE_THROWS_AS(ParseCsv("\n\n", "e.csv"), InputError);
+}
+
+TEST_CASE("A units row is honoured only where it is checked", "[csv]") {
+  const auto table = ParseCsv("time,torque\nms,N*m\n0,1\n1,2\n", "t.csv");
+  REQUIRE(table.units == std::vector<std::string>{"ms", "N*m"});
+  REQUIRE_THROWS_WITH(millkit::RequireUnits(table, {{"time", {"s"}}, {"torque", {"N*m"}}}),
+                      Contains("t.csv: line 2 (units row), column 'time'") &&
+                          Contains("unit 'ms'") && Contains("takes s"));
+  REQUIRE_NOTHROW(millkit::RequireUnits(ParseCsv("time,torque\ns,N*m\n0,1\n", "t.csv"),
+                                        {{"time", {"s"}}, {"torque", {"N*m"}}}));
+  REQUIRE_THROWS_WITH(millkit::RequireUnits(table, {}), Contains("give no units row"));
 }
