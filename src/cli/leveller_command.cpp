@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -131,16 +132,29 @@ NloptInverseOptions InverseOptionsFor(const std::string& name) {
   return options;
 }
 
-[[noreturn]] void ThrowOutOfReach(const CsvTable& table, std::size_t r, const Linkage& linkage,
-                                  double y1, double y2, const std::string& reason) {
-  const ReachablePoint nearest = NearestReachable(linkage, y1, y2);
-  char buffer[256];
-  std::snprintf(buffer, sizeof(buffer),
-                "target (y1_mm, y2_mm) = (%.6g, %.6g) is outside the linkage's reach (%s); "
-                "nearest reachable (y1_mm, y2_mm) = (%.6f, %.6f) at beta = (%.4f, %.4f) deg",
-                y1, y2, reason.c_str(), nearest.y1_mm, nearest.y2_mm, nearest.beta1_deg,
-                nearest.beta2_deg);
-  throw InputError(Where(table, r) + ": " + buffer);
+// The nearest reachable pair, rounded to 1e-6 mm inward: moved past the boundary towards the
+// inside (away from the target) until the rounded pair itself is reachable, so that typed back as
+// a target it is accepted.
+ReachablePoint NearestInside(const Linkage& linkage, double y1, double y2) {
+  ReachablePoint nearest = NearestReachable(linkage, y1, y2);
+  const double d1 = nearest.y1_mm - y1;
+  const double d2 = nearest.y2_mm - y2;
+  const double length = std::hypot(d1, d2);
+  for (double step = 1e-6; step <= 1e-2; step *= 10.0) {
+    const double u1 = length > 0.0 ? nearest.y1_mm + step * d1 / length : nearest.y1_mm;
+    const double u2 = length > 0.0 ? nearest.y2_mm + step * d2 / length : nearest.y2_mm;
+    const double r1 = std::round(u1 * 1e6) / 1e6;
+    const double r2 = std::round(u2 * 1e6) / 1e6;
+    const AngleSetpoint check = linkage.InverseClosedForm(r1, r2);
+    if (check.status == InverseStatus::kOk || check.status == InverseStatus::kAssemblyMismatch) {
+      nearest.y1_mm = r1;
+      nearest.y2_mm = r2;
+      nearest.beta1_deg = check.beta1_deg;
+      nearest.beta2_deg = check.beta2_deg;
+      return nearest;
+    }
+  }
+  return nearest;
 }
 
 void RunInverse(const InverseArgs& args) {
@@ -162,24 +176,66 @@ void RunInverse(const InverseArgs& args) {
       args.hydraulic ? std::vector<std::string>{"ah_mm", "bg_mm", "y3_mm", "residual_mm"}
                      : std::vector<std::string>{"beta1_deg", "beta2_deg", "y3_mm", "residual_mm",
                                                 "accuracy_mm"};
-  std::string text = HeaderWith(table, added);
+  std::vector<std::string> columns = added;
+  for (const char* c : {"nearest_y1_mm", "nearest_y2_mm", "status"}) columns.push_back(c);
+  std::string text = HeaderWith(table, columns);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  int not_ok = 0;
+  // Every row is written: a target out of reach, or one the solver could not meet, gets its
+  // status (and, out of reach, the nearest reachable pair) instead of stopping the batch.
+  const auto failed_row = [&](std::size_t r, const std::string& status, double y1, double y2,
+                              bool name_nearest, const std::string& why) {
+    ++not_ok;
+    double n1 = nan, n2 = nan;
+    std::string message = Where(table, r) + ": " + status + ": " + why;
+    const ReachablePoint nearest = name_nearest ? NearestInside(linkage, y1, y2) : ReachablePoint{};
+    // The linkage's nearest pair serves the cylinders only when they reach it too.
+    const bool cylinders_reach =
+        !args.hydraulic ||
+        linkage.InverseLengths(nearest.y1_mm, nearest.y2_mm, config.hydraulic).ok();
+    if (name_nearest && !cylinders_reach) {
+      message += "; no reachable pair was found near it for the cylinders";
+    } else if (name_nearest) {
+      n1 = nearest.y1_mm;
+      n2 = nearest.y2_mm;
+      char buffer[160];
+      std::snprintf(buffer, sizeof(buffer),
+                    "; nearest reachable (y1_mm, y2_mm) = (%.6f, %.6f) at beta = (%.4f, %.4f) deg",
+                    n1, n2, nearest.beta1_deg, nearest.beta2_deg);
+      message += buffer;
+    }
+    std::cerr << "millkit: warning: " << message << "\n";
+    std::vector<double> cells(added.size(), nan);
+    cells.push_back(n1);
+    cells.push_back(n2);
+    std::string row = RowWith(table.rows[r], cells);
+    row.insert(row.size() - 1, "," + status);
+    text += row;
+  };
   for (std::size_t r = 0; r < table.rows.size(); ++r) {
     const double y1 = table.rows[r][c1];
     const double y2 = table.rows[r][c2];
     if (args.hydraulic) {
       const LengthSetpoint lengths = linkage.InverseLengths(y1, y2, config.hydraulic);
       if (!lengths.ok()) {
-        throw InputError(Where(table, r) + ": target (y1_mm, y2_mm) = (" + FormatNumber(y1) + ", " +
-                         FormatNumber(y2) + ") not reachable by the cylinders (" +
-                         ToString(lengths.status) + ")");
+        failed_row(r, "unreachable", y1, y2, true,
+                   "target (" + FormatNumber(y1) + ", " + FormatNumber(y2) +
+                       ") is not reachable by the cylinders (" + ToString(lengths.status) + ")");
+        continue;
       }
-      text += RowWith(table.rows[r],
-                      {lengths.ah_mm, lengths.bg_mm, lengths.y3_mm, lengths.residual_mm});
+      // A reachable target is its own nearest reachable pair.
+      std::string row = RowWith(table.rows[r], {lengths.ah_mm, lengths.bg_mm, lengths.y3_mm,
+                                                lengths.residual_mm, y1, y2});
+      row.insert(row.size() - 1, ",ok");
+      text += row;
       continue;
     }
     const AngleSetpoint closed = linkage.InverseClosedForm(y1, y2);
     if (closed.status != InverseStatus::kOk && closed.status != InverseStatus::kAssemblyMismatch) {
-      ThrowOutOfReach(table, r, linkage, y1, y2, ToString(closed.status));
+      failed_row(r, "unreachable", y1, y2, true,
+                 "target (" + FormatNumber(y1) + ", " + FormatNumber(y2) +
+                     ") is outside the linkage's reach (" + ToString(closed.status) + ")");
+      continue;
     }
     double beta1 = closed.beta1_deg;
     double beta2 = closed.beta2_deg;
@@ -188,7 +244,8 @@ void RunInverse(const InverseArgs& args) {
     if (args.method == "nlopt") {
       const NloptInverseResult solved = nlopt_inverse.Solve(y1, y2);
       if (!solved.summary.accepted) {
-        throw SolverFailure(Where(table, r) + ": " + solved.summary.BriefReport());
+        failed_row(r, "not_converged", y1, y2, false, solved.summary.BriefReport());
+        continue;
       }
       beta1 = solved.beta1_deg;
       beta2 = solved.beta2_deg;
@@ -200,7 +257,8 @@ void RunInverse(const InverseArgs& args) {
                   << " deg (both meet the target; the pose is near a dead centre)\n";
       }
     } else if (!closed.ok()) {
-      throw SolverFailure(Where(table, r) + ": closed form: " + ToString(closed.status));
+      failed_row(r, "not_converged", y1, y2, false, "closed form: " + ToString(closed.status));
+      continue;
     }
     const SetpointAccuracy accuracy = linkage.Accuracy(beta1, beta2, args.encoder_deg);
     if (accuracy.dead_centre_distance_deg < args.dead_centre_warning_deg) {
@@ -208,9 +266,17 @@ void RunInverse(const InverseArgs& args) {
                 << FormatNumber(accuracy.dead_centre_distance_deg)
                 << " deg of a dead centre: dY/dbeta is small, the angle is poorly determined\n";
     }
-    text += RowWith(table.rows[r], {beta1, beta2, y3, residual, accuracy.max_delta_y_mm});
+    std::string row =
+        RowWith(table.rows[r], {beta1, beta2, y3, residual, accuracy.max_delta_y_mm, y1, y2});
+    row.insert(row.size() - 1, ",ok");
+    text += row;
   }
   WriteFileAtomically(args.out, text);
+  if (not_ok > 0) {
+    std::cerr << "millkit leveller inverse: " << not_ok << " of " << table.rows.size()
+              << " rows are not ok (status column of " << args.out << ")\n";
+    throw NotTrusted("leveller inverse");
+  }
 }
 
 struct ForcesArgs {
