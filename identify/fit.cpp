@@ -16,6 +16,7 @@
 #include "identify/uncertainty.h"
 #include "identify/verdict.h"
 #include "io/input_error.h"
+#include "io/toml_section.h"
 
 namespace millkit::identify {
 
@@ -126,12 +127,6 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
 
 namespace {
 
-std::string Short(double value) {
-  std::ostringstream out;
-  out << std::setprecision(3) << value;
-  return out.str();
-}
-
 // What the records say before any model runs: each block's noise and weight, and why the records
 // cannot support the fit, if they cannot.
 struct RecordAssessment {
@@ -211,6 +206,20 @@ void FillChannels(const FitModel& model, const std::vector<Eigen::VectorXd>& m,
   }
 }
 
+// What the config says of scene slot s (name, unit, record, start, bounds); value and standard
+// error are the caller's.
+ParameterEstimate EstimateFrame(const FitModel& model, int s) {
+  const auto& free = model.free(s);
+  ParameterEstimate e;
+  e.name = model.slot(s).name;
+  e.unit = free.parameter.unit;
+  if (model.slot(s).record >= 0) e.record = model.record(model.slot(s).record).source;
+  e.start = free.start;
+  e.lower = free.lower;
+  e.upper = free.upper;
+  return e;
+}
+
 // The record cannot support the fit: the start point is reported unfitted, with its model trace
 // where it simulates (gain 1, offset 0), so the engineer still gets the plot.
 FitResult DegenerateResult(const FitModel& model, const RecordAssessment& assessment,
@@ -218,15 +227,9 @@ FitResult DegenerateResult(const FitModel& model, const RecordAssessment& assess
   FitResult result;
   auto& summary = result.summary;
   for (int s = 0; s < model.parameters(); ++s) {
-    const auto& free = model.free(s);
-    ParameterEstimate e;
-    e.name = model.slot(s).name;
-    e.unit = free.parameter.unit;
-    if (model.slot(s).record >= 0) e.record = model.record(model.slot(s).record).source;
-    e.value = e.start = free.start;
+    ParameterEstimate e = EstimateFrame(model, s);
+    e.value = e.start;
     e.standard_error = std::numeric_limits<double>::quiet_NaN();
-    e.lower = free.lower;
-    e.upper = free.upper;
     e.identifiable = false;
     e.why_not = "not fitted: the record cannot support the fit";
     result.parameters.push_back(e);
@@ -242,15 +245,6 @@ FitResult DegenerateResult(const FitModel& model, const RecordAssessment& assess
   summary.simulations = model.simulations();
   summary.cost = summary.noise_scale = std::numeric_limits<double>::quiet_NaN();
   return result;
-}
-
-std::vector<int> FittedIndices(const FitModel& model) {
-  const auto constant = model.ConstantIndices();
-  std::vector<int> fitted;
-  for (int j = 0; j < model.size(); ++j) {
-    if (std::find(constant.begin(), constant.end(), j) == constant.end()) fitted.push_back(j);
-  }
-  return fitted;
 }
 
 }  // namespace
@@ -275,7 +269,7 @@ std::vector<double> CramerRaoBound(const driveline::Scene& scene, const Oscillog
                           &jac)) {
     throw InputError("Cramér–Rao bound: the scene does not simulate: " + model.last_failure());
   }
-  const auto fitted = FittedIndices(model);
+  const auto fitted = model.FittedIndices();
   Eigen::MatrixXd reduced(jac.rows(), fitted.size());
   for (size_t j = 0; j < fitted.size(); ++j) reduced.col(j) = jac.col(fitted[j]);
   const Eigen::MatrixXd information = reduced.transpose() * reduced;
@@ -314,23 +308,23 @@ bool DescribeBest(const FitModel& model, const Search& search, const RecordAsses
       !model.FullJacobian(u, nuisance, options.derivative_step, &r, &jac)) {
     return false;
   }
-  const auto fitted = FittedIndices(model);
+  const auto fitted = model.FittedIndices();
   const double dof = static_cast<double>(model.residuals()) - static_cast<double>(fitted.size());
   summary.cost = 0.5 * r.squaredNorm();
   summary.residuals = model.residuals();
   summary.fitted_quantities = static_cast<int>(fitted.size());
   summary.noise_scale = std::sqrt(2.0 * summary.cost / std::max(1.0, dof));
   Eigen::MatrixXd covariance = Covariance(jac, fitted, summary.noise_scale);
-  const auto widening =
-      ProfileWidening(model, u, covariance, summary.cost, summary.noise_scale, options,
-                      std::vector<bool>(model.parameters(), true), search.probes, lower_found);
+  const auto widening = ProfileWidening(model, u, covariance, summary.cost, summary.noise_scale,
+                                        options, search.probes, lower_found);
   std::string widened;
   for (int i = 0; i < model.parameters(); ++i) {
     if (widening[i] > 1.0 && std::isfinite(widening[i])) {
       covariance.row(i) *= widening[i];
       covariance.col(i) *= widening[i];
       if (widening[i] > 1.05) {
-        widened += (widened.empty() ? "" : ", ") + model.slot(i).name + " x" + Short(widening[i]);
+        widened +=
+            (widened.empty() ? "" : ", ") + model.slot(i).name + " x" + ShortNumber(widening[i]);
       }
     }
   }
@@ -340,16 +334,9 @@ bool DescribeBest(const FitModel& model, const Search& search, const RecordAsses
   }
 
   for (int i = 0; i < model.parameters(); ++i) {
-    const auto& free = model.free(i);
-    ParameterEstimate e;
-    e.name = model.slot(i).name;
-    e.unit = free.parameter.unit;
-    if (model.slot(i).record >= 0) e.record = model.record(model.slot(i).record).source;
+    ParameterEstimate e = EstimateFrame(model, i);
     e.value = model.Physical(i, u[i]);
     e.standard_error = std::sqrt(covariance(i, i)) * model.slot(i).map.PhysicalPerUnit(u[i]);
-    e.start = free.start;
-    e.lower = free.lower;
-    e.upper = free.upper;
     e.at_bound = u[i] <= 1e-9 || u[i] >= 1.0 - 1e-9;
     result->parameters.push_back(e);
   }
@@ -417,20 +404,20 @@ void AddDoubts(const RecordAssessment& assessment, bool several_records, FitResu
   auto& warnings = result->summary.warnings;
   for (const auto& e : result->parameters) {
     if (e.at_bound) {
-      warnings.push_back(e.name + " = " + Short(e.value) + " " + e.unit + " is at a bound of [" +
-                         Short(e.lower) + ", " + Short(e.upper) +
-                         "]: the best value may lie outside");
+      warnings.push_back(e.name + " = " + ShortNumber(e.value) + " " + e.unit +
+                         " is at a bound of [" + ShortNumber(e.lower) + ", " +
+                         ShortNumber(e.upper) + "]: the best value may lie outside");
     }
   }
   for (size_t b = 0; b < result->channels.size(); ++b) {
     const auto& c = result->channels[b];
     const std::string name = c.column + (several_records ? "@" + c.record_label : "");
     if (c.gain_at_bound) {
-      warnings.push_back("channel " + name + ": gain " + Short(c.gain) +
+      warnings.push_back("channel " + name + ": gain " + ShortNumber(c.gain) +
                          " is at its bound (gain_bounds)");
     }
     if (c.offset_at_bound) {
-      warnings.push_back("channel " + name + ": offset " + Short(c.offset) +
+      warnings.push_back("channel " + name + ": offset " + ShortNumber(c.offset) +
                          " N*m is at its bound (offset_limit)");
     }
     if (!assessment.noise[b].from_quiet_stretch) {
@@ -493,7 +480,7 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   ListMinima(model, search, &result);
   summary.success = true;
   if (lower_found) {
-    summary.warnings.push_back("a probe " + Short(options.profile_step) +
+    summary.warnings.push_back("a probe " + ShortNumber(options.profile_step) +
                                " standard errors from the best point found a lower cost: the fit "
                                "had not reached its minimum");
   }

@@ -108,6 +108,15 @@ std::vector<int> FitModel::ConstantIndices() const {
   return constant;
 }
 
+std::vector<int> FitModel::FittedIndices() const {
+  const auto constant = ConstantIndices();
+  std::vector<int> fitted;
+  for (int j = 0; j < size(); ++j) {
+    if (std::find(constant.begin(), constant.end(), j) == constant.end()) fitted.push_back(j);
+  }
+  return fitted;
+}
+
 std::string FitModel::NuisanceName(int b, bool gain) const {
   std::string name = gain ? "gain." : "offset.";
   name += channel_spec(b).column;

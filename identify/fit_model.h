@@ -90,8 +90,9 @@ class FitModel {
 
   double Physical(int s, double u) const { return slots_[s].map.Physical(u); }
   double Unit(int s, double value) const { return slots_[s].map.Unit(value); }
-  // The fitted quantities that are held constant (gains or offsets the config does not fit).
+  // The quantities of θ held constant (gains or offsets the config does not fit), and the others.
   std::vector<int> ConstantIndices() const;
+  std::vector<int> FittedIndices() const;
   // Gain.<column> or offset.<column>, with @<record label> when there are several records.
   std::string NuisanceName(int b, bool gain) const;
 

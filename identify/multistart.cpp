@@ -239,7 +239,7 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
 
   // A best minimum that leaves the residual unexplained is most often a wrong basin: one more
   // search, with a scan escalation_factor times as dense, other points and twice the starts.
-  int fitted = model->size() - static_cast<int>(model->ConstantIndices().size());
+  const int fitted = static_cast<int>(model->FittedIndices().size());
   if (options.escalation_factor > 1 &&
       WorstResidualZ(*model, noise, minima[search.best].u, fitted) > options.misfit_z) {
     FitConfig wider = config;

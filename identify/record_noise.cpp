@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <iomanip>
 #include <limits>
-#include <sstream>
+
+#include "io/toml_section.h"
 
 namespace millkit::identify {
 namespace {
@@ -20,12 +20,6 @@ double Peak(const std::vector<double>& y) {
   double peak = 0.0;
   for (const double v : y) peak = std::max(peak, std::abs(v));
   return peak;
-}
-
-std::string Short(double value) {
-  std::ostringstream out;
-  out << std::setprecision(3) << value;
-  return out.str();
 }
 
 }  // namespace
@@ -120,20 +114,20 @@ std::string DegenerateColumn(const Oscillogram& record, int column, int begin, i
   double high = -low;
   for (int k = begin; k < end; ++k) {
     if (!std::isfinite(y[k]) || std::abs(y[k]) > kAbsurdTorque_Nm) {
-      return name + ": value " + Short(y[k]) + " at t = " + Short(record.time_s[k]) +
-             " s is not a torque (beyond " + Short(kAbsurdTorque_Nm) + " N*m)";
+      return name + ": value " + ShortNumber(y[k]) + " at t = " + ShortNumber(record.time_s[k]) +
+             " s is not a torque (beyond " + ShortNumber(kAbsurdTorque_Nm) + " N*m)";
     }
     low = std::min(low, y[k]);
     high = std::max(high, y[k]);
   }
   if (!(high - low > 0.0)) {
-    return name + ": the channel is constant (" + Short(low) +
+    return name + ": the channel is constant (" + ShortNumber(low) +
            " N*m) over the window: a dead or disconnected gauge";
   }
   // A response must stand out of the noise; 10 σ peak to peak is a clear one.
   if (high - low < 10.0 * sigma_Nm) {
-    return name + ": the channel varies by " + Short(high - low) + " N*m over the window, " +
-           "less than 10 times its noise " + Short(sigma_Nm) + " N*m: no response to fit";
+    return name + ": the channel varies by " + ShortNumber(high - low) + " N*m over the window, " +
+           "less than 10 times its noise " + ShortNumber(sigma_Nm) + " N*m: no response to fit";
   }
   return "";
 }

@@ -2,19 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <iomanip>
 #include <limits>
 #include <random>
-#include <sstream>
+
+#include "io/toml_section.h"
 
 namespace millkit::identify {
 namespace {
-
-std::string Short(double value) {
-  std::ostringstream out;
-  out << std::setprecision(3) << value;
-  return out.str();
-}
 
 // Singular values below this fraction of the largest are the null space of the covariance
 // (eigenvalues of JᵀJ below 1e-14 of the largest: roundoff of the finite differences).
@@ -83,23 +77,23 @@ void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
       estimate.why_not =
           "the record hardly depends on it: even with every other quantity known "
           "its standard error would be " +
-          Short(alone) + ", more than " + Short(options.unidentifiable_fraction) +
-          " of its bound width " + Short(width);
+          ShortNumber(alone) + ", more than " + ShortNumber(options.unidentifiable_fraction) +
+          " of its bound width " + ShortNumber(width);
       continue;
     }
     for (int k = 0; k < sv.size(); ++k) {
       if (sv(k) < options.rank_tolerance * sv(0) && std::abs(svd.matrixV()(j, k)) > 0.1) {
         estimate.identifiable = false;
         estimate.why_not = "the Jacobian is rank-deficient in its direction (singular value " +
-                           Short(sv(k) / sv(0)) + " of the largest): it trades off " +
+                           ShortNumber(sv(k) / sv(0)) + " of the largest): it trades off " +
                            "against other parameters";
       }
     }
     if (estimate.identifiable && !(estimate.standard_error <= limit)) {
       estimate.identifiable = false;
-      estimate.why_not = "its standard error " + Short(estimate.standard_error) + " exceeds " +
-                         Short(options.unidentifiable_fraction) + " of its bound width " +
-                         Short(width);
+      estimate.why_not = "its standard error " + ShortNumber(estimate.standard_error) +
+                         " exceeds " + ShortNumber(options.unidentifiable_fraction) +
+                         " of its bound width " + ShortNumber(width);
     }
   }
 }
@@ -128,11 +122,7 @@ std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vec
       !model.FullJacobian(u, nuisance, options.derivative_step, &r, &jacobian)) {
     return points;
   }
-  const auto constant = model.ConstantIndices();
-  std::vector<int> fitted;
-  for (int j = 0; j < model.size(); ++j) {
-    if (std::find(constant.begin(), constant.end(), j) == constant.end()) fitted.push_back(j);
-  }
+  const std::vector<int> fitted = model.FittedIndices();
   const int p = model.parameters();
   const double dof = std::max(1.0, static_cast<double>(model.residuals() - fitted.size()));
   const Eigen::MatrixXd covariance = Covariance(jacobian, fitted, std::sqrt(2.0 * cost / dof));
@@ -159,7 +149,6 @@ std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vec
 std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,
                                     const Eigen::MatrixXd& covariance, double best_cost,
                                     double noise_scale, const FitOptions& options,
-                                    const std::vector<bool>& identifiable,
                                     const std::vector<ProfileProbe>& probes, bool* lower_found) {
   const int p = model.parameters();
   std::vector<double> widening(p, 1.0);
@@ -168,7 +157,7 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
   const double predicted = 0.5 * step * step * noise_scale * noise_scale;
   for (int i = 0; i < p; ++i) {
     const double variance = covariance(i, i);
-    if (!identifiable[i] || !(variance > 0.0) || !std::isfinite(variance)) continue;
+    if (!(variance > 0.0) || !std::isfinite(variance)) continue;
     const Eigen::VectorXd direction = covariance.col(i).head(p) / std::sqrt(variance);
     double flattest = std::numeric_limits<double>::infinity();
     for (const double sign : {-1.0, 1.0}) {
@@ -239,14 +228,14 @@ void FlagPlateaus(const FitModel& model, const std::vector<ProfileProbe>& probes
         std::min(std::abs(low - estimate.value), std::abs(high - estimate.value));
     if (estimate.value >= low && estimate.value <= high) {
       estimate.identifiable = false;
-      estimate.why_not = "the record is the same for every value in [" + Short(low) + ", " +
-                         Short(high) + "] " + estimate.unit;
+      estimate.why_not = "the record is the same for every value in [" + ShortNumber(low) + ", " +
+                         ShortNumber(high) + "] " + estimate.unit;
     } else if (!(distance <= 3.0 * se)) {
       estimate.identifiable = false;
-      estimate.why_not = "the record is the same for every value in [" + Short(low) + ", " +
-                         Short(high) + "] " + estimate.unit + " (a plateau of the cost " +
-                         Short(distance / se) + " standard errors away): the record bounds it " +
-                         "from one side only";
+      estimate.why_not = "the record is the same for every value in [" + ShortNumber(low) + ", " +
+                         ShortNumber(high) + "] " + estimate.unit + " (a plateau of the cost " +
+                         ShortNumber(distance / se) +
+                         " standard errors away): the record bounds it " + "from one side only";
     }
   }
 }

@@ -45,7 +45,7 @@ std::vector<ProfileProbe> ProfileProbes(const FitModel& model, const std::vector
 std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vector<double>& u,
                                            double cost, const FitOptions& options);
 
-// The profile check: for each identifiable scene parameter i, θ moves along its profile
+// The profile check: for each scene parameter i, θ moves along its profile
 // direction C e_i / √C_ii by ± profile_step (in standard errors); the linearisation predicts the
 // cost to rise by ½ step² noise_scale². Where the actual projected cost rises less on either side,
 // the standard error is widened by √(predicted/actual) (the cost is flatter than the Jacobian
@@ -55,7 +55,6 @@ std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vec
 std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,
                                     const Eigen::MatrixXd& covariance, double best_cost,
                                     double noise_scale, const FitOptions& options,
-                                    const std::vector<bool>& identifiable,
                                     const std::vector<ProfileProbe>& probes, bool* lower_found);
 
 // Flags a parameter not identifiable where neighbouring axis probes have the same cost: the

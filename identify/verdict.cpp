@@ -2,19 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <iomanip>
-#include <sstream>
+
+#include "io/toml_section.h"
 
 namespace millkit::identify {
-namespace {
-
-std::string Short(double value, int digits = 3) {
-  std::ostringstream out;
-  out << std::setprecision(digits) << value;
-  return out.str();
-}
-
-}  // namespace
 
 ResidualTest TestResidual(const std::vector<double>& residual, const ChannelNoise& noise,
                           double fitted_share) {
@@ -93,10 +84,11 @@ void JudgeFit(const FitModel& model, const std::vector<ChannelNoise>& noise,
         name += "@" + channel.record_label;  // several records
       }
       warnings.push_back(
-          "channel " + name + ": the residual (rms " + Short(channel.rms_residual) + " N*m) is " +
-          Short(std::sqrt(channel.chi2_ratio)) + " times the record's noise (" + Short(sigma) +
-          " N*m, " + channel.noise_source + "), beyond the level z = " + Short(options.misfit_z) +
-          " (variance z = " + Short(z) + ", whiteness z = " + Short(z_white) +
+          "channel " + name + ": the residual (rms " + ShortNumber(channel.rms_residual) +
+          " N*m) is " + ShortNumber(std::sqrt(channel.chi2_ratio)) + " times the record's noise (" +
+          ShortNumber(sigma) + " N*m, " + channel.noise_source +
+          "), beyond the level z = " + ShortNumber(options.misfit_z) +
+          " (variance z = " + ShortNumber(z) + ", whiteness z = " + ShortNumber(z_white) +
           "): the model or the minimum does not explain the record");
     }
   }
@@ -122,10 +114,11 @@ void JudgeFit(const FitModel& model, const std::vector<ChannelNoise>& noise,
     if (farthest > options.distinct_minimum_se) {
       ambiguous = true;
       const auto& estimate = result->parameters[which];
-      warnings.push_back("another minimum fits as well (chi2 higher by " + Short(delta_chi2) +
-                         ", below " + Short(options.ambiguity_chi2) + ") with " + estimate.name +
-                         " = " + Short(model.Physical(which, minima[k].u[which]), 6) + " " +
-                         estimate.unit + ", " + Short(farthest) +
+      warnings.push_back("another minimum fits as well (chi2 higher by " + ShortNumber(delta_chi2) +
+                         ", below " + ShortNumber(options.ambiguity_chi2) + ") with " +
+                         estimate.name + " = " +
+                         ShortNumber(model.Physical(which, minima[k].u[which]), 6) + " " +
+                         estimate.unit + ", " + ShortNumber(farthest) +
                          " standard errors from the best: the record does not decide between "
                          "them");
       break;

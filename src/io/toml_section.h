@@ -64,6 +64,8 @@ class TomlSection {
 
 // Number formatting for messages: shortest round-trip representation.
 std::string FormatNumber(double value);
+// `digits` significant digits, for messages and reports (3 by default).
+std::string ShortNumber(double value, int digits = 3);
 // Appends the same shortest round-trip text to `text` without a temporary (CSV writers).
 void AppendNumber(double value, std::string* text);
 
