@@ -414,7 +414,9 @@ void AddDoubts(const RecordAssessment& assessment, bool several_records, FitResu
     const std::string name = c.column + (several_records ? "@" + c.record_label : "");
     if (c.gain_at_bound) {
       warnings.push_back("channel " + name + ": gain " + ShortNumber(c.gain) +
-                         " is at its bound (gain_bounds)");
+                         " is at its bound (gain_bounds); a gain far from 1 can be a wrong "
+                         "unit: give the channel's unit (N*m, kN*m or MN*m) in its [[channel]] "
+                         "or the record's units row");
     }
     if (c.offset_at_bound) {
       warnings.push_back("channel " + name + ": offset " + ShortNumber(c.offset) +
@@ -428,12 +430,8 @@ void AddDoubts(const RecordAssessment& assessment, bool several_records, FitResu
   }
 }
 
-}  // namespace
-
-FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& records,
-              const FitConfig& config, const FitOptions& options) {
-  options.Validate();
-  ValidateFitConfig(config, records, "fit config");
+FitResult FitInNewtonMetres(const driveline::Scene& scene, const std::vector<Oscillogram>& records,
+                            const FitConfig& config, const FitOptions& options) {
   const auto clock_start = std::chrono::steady_clock::now();
   const auto elapsed = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
@@ -488,6 +486,39 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
   AddDoubts(assessment, records.size() > 1, &result);
   summary.simulations = model.simulations();
   summary.wall_time_s = elapsed();
+  return result;
+}
+
+}  // namespace
+
+FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& records,
+              const FitConfig& config, const FitOptions& options) {
+  options.Validate();
+  ValidateFitConfig(config, records, "fit config");
+  // Channels logged in kN·m or MN·m are fitted in N·m and reported in their own unit.
+  bool all_Nm = true;
+  for (const auto& c : config.channels) all_Nm = all_Nm && c.unit.newton_metres == 1.0;
+  std::vector<Oscillogram> scaled;
+  if (!all_Nm) {
+    scaled = records;
+    for (auto& record : scaled) {
+      for (const auto& c : config.channels) {
+        for (double& v : record.values[record.ChannelIndex(c.column)]) v *= c.unit.newton_metres;
+      }
+    }
+  }
+  FitResult result = FitInNewtonMetres(scene, all_Nm ? records : scaled, config, options);
+  for (auto& e : result.channels) {
+    const auto spec = std::find_if(config.channels.begin(), config.channels.end(),
+                                   [&e](const ChannelSpec& c) { return c.column == e.column; });
+    e.unit = spec->unit.name;
+    const double f = spec->unit.newton_metres;
+    if (f == 1.0) continue;
+    for (double* v : {&e.offset, &e.offset_se, &e.noise, &e.rms_residual}) *v /= f;
+    e.weight *= f;
+    for (double& v : e.measured) v /= f;
+    for (double& v : e.fitted) v /= f;
+  }
   return result;
 }
 

@@ -135,24 +135,25 @@ struct ParameterEstimate {
   std::string why_not;  // when not identifiable
 };
 
-// One channel of one record.
+// One channel of one record. Torques (offset, noise, residual, traces) are in the channel's unit.
 struct ChannelEstimate {
   std::string column;
   std::string link;
   std::string record;        // the record's source (file)
   std::string record_label;  // RecordLabels() of the fit's records
+  std::string unit = "N*m";  // ChannelSpec::unit
   double gain = 1.0;
   double gain_se = 0.0;
-  double offset = 0.0;  // N·m
+  double offset = 0.0;
   double offset_se = 0.0;
-  double weight = 0.0;       // 1/N·m, as used in the fit
-  double noise = 0.0;        // N·m, the channel's noise measured on the record
+  double weight = 0.0;       // 1/unit, as used in the fit
+  double noise = 0.0;        // the channel's noise measured on the record
   std::string noise_source;  // "quiet stretch (m samples)" or "second differences"
   double chi2_ratio = 0.0;   // residual variance / noise variance
   double whiteness_z = 0.0;  // the residual's autocorrelation against the noise's, as a normal z
   bool gain_at_bound = false;
   bool offset_at_bound = false;
-  double rms_residual = 0.0;  // N·m
+  double rms_residual = 0.0;
   int samples = 0;
   std::vector<double> time_s;  // the window samples' times (s)
   std::vector<double> fitted;  // g·m + o at the window samples

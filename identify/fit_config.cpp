@@ -61,7 +61,49 @@ std::pair<double, double> CommonSpan(const std::vector<Oscillogram>& records) {
 // impacts happen), so the scan covers them all unless the config says otherwise.
 bool ScannedByDefault(SceneParameter::Kind) { return true; }
 
+// The channel's unit from the records' units rows, checked against the config's (when given):
+// every record must agree.
+TorqueUnit ChannelUnit(const std::string& column, const std::optional<TorqueUnit>& configured,
+                       const std::vector<Oscillogram>& records, const std::string& where) {
+  std::optional<TorqueUnit> unit = configured;
+  std::string unit_source = where;
+  for (const auto& record : records) {
+    const int j = record.ChannelIndex(column);
+    if (j < 0 || j >= static_cast<int>(record.units.size()) || record.units[j].empty()) continue;
+    const std::string row_where = record.source + ", units row of column '" + column + "'";
+    const auto row_unit = ParseTorqueUnit(record.units[j]);
+    if (!row_unit) {
+      throw InputError(row_where + ": '" + record.units[j] +
+                       "' is not a torque unit; a channel takes N*m, kN*m or MN*m");
+    }
+    if (unit && unit->name != row_unit->name) {
+      throw InputError(row_where + " says " + row_unit->name + ", " + unit_source + " says " +
+                       unit->name + "; make them agree");
+    }
+    unit = row_unit;
+    unit_source = row_where;
+  }
+  return unit ? *unit : TorqueUnit{"N*m", 1.0};
+}
+
 }  // namespace
+
+std::optional<TorqueUnit> ParseTorqueUnit(const std::string& text) {
+  std::string key;
+  for (size_t k = 0; k < text.size(); ++k) {
+    const char c = text[k];
+    if (text.compare(k, 2, "\xC2\xB7") == 0) {  // U+00B7 middle dot
+      ++k;
+      continue;
+    }
+    if (c == ' ' || c == '*' || c == '.' || c == '[' || c == ']' || c == '(' || c == ')') continue;
+    key += c;
+  }
+  if (key == "Nm") return TorqueUnit{"N*m", 1.0};
+  if (key == "kNm") return TorqueUnit{"kN*m", 1e3};
+  if (key == "MNm") return TorqueUnit{"MN*m", 1e6};
+  return std::nullopt;
+}
 
 void ValidateFitConfig(const FitConfig& config, const std::vector<Oscillogram>& records,
                        const std::string& where) {
@@ -213,8 +255,8 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
   index = 0;
   for (const auto& section : top.TableArray("channel")) {
     ++index;
-    section.RequireOnlyKeys(
-        {"column", "link", "weight", "gain", "offset", "lowpass", "gain_bounds", "offset_limit"});
+    section.RequireOnlyKeys({"column", "link", "unit", "weight", "gain", "offset", "lowpass",
+                             "gain_bounds", "offset_limit"});
     ChannelSpec c;
     c.column = section.RequiredString("column");
     for (const auto& record : records) {
@@ -225,8 +267,17 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
     c.link = section.String("link", c.column);
     c.link_index = scene->LinkIndex(c.link);
     if (c.link_index < 0) section.Fail("link", "no link named '" + c.link + "' in the scene");
-    if (section.Has("weight"))
-      c.weight = section.Positive("weight", section.RequiredNumber("weight"));
+    std::optional<TorqueUnit> configured_unit;
+    if (section.Has("unit")) {
+      configured_unit = ParseTorqueUnit(section.RequiredString("unit"));
+      if (!configured_unit) section.Fail("unit", "must be \"N*m\", \"kN*m\" or \"MN*m\"");
+    }
+    c.unit = ChannelUnit(c.column, configured_unit, records, section.KeyContext("unit"));
+    // weight and offset_limit are given in the channel's unit, kept in N·m.
+    if (section.Has("weight")) {
+      c.weight =
+          section.Positive("weight", section.RequiredNumber("weight")) / c.unit.newton_metres;
+    }
     c.fit_gain = section.Bool("gain", true);
     c.fit_offset = section.Bool("offset", true);
     c.lowpass_Hz = section.NonNegative("lowpass", section.Number("lowpass", 0.0));
@@ -240,7 +291,8 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
       c.gain_upper = bounds[1];
     }
     if (section.Has("offset_limit")) {
-      c.offset_limit_Nm = section.Positive("offset_limit", section.RequiredNumber("offset_limit"));
+      c.offset_limit_Nm = section.Positive("offset_limit", section.RequiredNumber("offset_limit")) *
+                          c.unit.newton_metres;
     }
     config.channels.push_back(c);
   }
@@ -263,6 +315,7 @@ FitConfig DefaultFitConfig(const driveline::Scene& scene, const std::vector<Osci
     ChannelSpec c;
     c.column = c.link = record.channels[j];
     c.link_index = link;
+    c.unit = ChannelUnit(c.column, std::nullopt, records, "default fit of " + scene.file);
     config.channels.push_back(c);
   }
   if (config.channels.empty()) {

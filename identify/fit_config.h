@@ -21,15 +21,16 @@
 //   per_record = false     # with several records (--data more than once): one value per record
 //                          # (default: true for bite_time, false otherwise)
 //   [[channel]]
-//   column = "upper_torque"  # record column
+//   column = "upper_torque"  # record column (or iba signal ID, "[3:12]")
 //   link = "upper_spindle"   # default: the column name
-//   weight = 1.0e-3          # 1/N·m (default: 1/noise, measured on the record before the bite)
+//   unit = "kN*m"            # N*m, kN*m or MN*m (default: the record's units row, else N*m)
+//   weight = 1.0e-3          # 1/unit (default: 1/noise, measured on the record before the bite)
 //   gain = true              # fit a gain (default true; start 1)
 //   offset = true            # fit an offset (default true; start: mean before bite)
 //   lowpass = 800.0          # Hz: the recorder's first-order anti-alias filter, applied to the
 //                            # model (default 0: none; see identify/instrument_filter.h)
 //   gain_bounds = [0.5, 2.0] # the gain's bounds (default [0.5, 2])
-//   offset_limit = 5.0e4     # N·m: the offset's bound ± (default: the channel's peak |value|)
+//   offset_limit = 5.0e4     # unit: the offset's bound ± (default: the channel's peak |value|)
 //
 // Without a config: every record column named like a link is a channel; free are the damping of
 // every elastic link in [d/10, 10 d], the backlash of every link with b > 0 in [b/5, 3 b], and
@@ -60,11 +61,23 @@ struct FreeParameter {
   bool per_record = false;  // one value per record when several are fitted together
 };
 
+// A torque unit a channel may be logged in: its canonical name ("N*m", "kN*m" or "MN*m") and
+// N·m per unit. Accepts the spellings loggers use: N*m, Nm, N.m, N m, N·m, with k or M, in
+// brackets or not. None for anything else.
+struct TorqueUnit {
+  std::string name;
+  double newton_metres = 1.0;
+};
+std::optional<TorqueUnit> ParseTorqueUnit(const std::string& text);
+
 struct ChannelSpec {
-  std::string column;
+  std::string column;  // record column: its name, or an iba signal ID
   std::string link;
-  int link_index = -1;           // scene link
-  std::optional<double> weight;  // none: 1/noise measured on the record (record_noise.h)
+  int link_index = -1;  // scene link
+  // The column's unit (config `unit`, else the record's units row, else N*m). The fit works in
+  // N·m and reports the channel (offset, noise, residual, traces) in this unit.
+  TorqueUnit unit{"N*m", 1.0};
+  std::optional<double> weight;  // 1/N·m; none: 1/noise measured on the record (record_noise.h)
   bool fit_gain = true;
   bool fit_offset = true;
   double lowpass_Hz = 0.0;  // the recorder's first-order anti-alias filter, modelled (0: none)

@@ -66,18 +66,19 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
     channels.push_back({{"column", c.column},
                         {"link", c.link},
                         {"record", c.record},
+                        {"unit", c.unit},
                         {"gain", Number(c.gain)},
                         {"gain_standard_error", Number(c.gain_se)},
-                        {"offset_Nm", Number(c.offset)},
-                        {"offset_standard_error_Nm", Number(c.offset_se)},
-                        {"weight_per_Nm", c.weight},
-                        {"noise_Nm", Number(c.noise)},
+                        {"offset", Number(c.offset)},
+                        {"offset_standard_error", Number(c.offset_se)},
+                        {"weight_per_unit", c.weight},
+                        {"noise", Number(c.noise)},
                         {"noise_source", c.noise_source},
                         {"residual_to_noise_variance", Number(c.chi2_ratio)},
                         {"residual_whiteness_z", Number(c.whiteness_z)},
                         {"gain_at_bound", c.gain_at_bound},
                         {"offset_at_bound", c.offset_at_bound},
-                        {"rms_residual_Nm", Number(c.rms_residual)},
+                        {"rms_residual", Number(c.rms_residual)},
                         {"samples", c.samples}});
   }
   doc["channels"] = channels;
@@ -166,14 +167,14 @@ std::string FitPlotSvg(const FitResult& result, const std::string& title) {
     PlotPanel torque;
     torque.title = name + " (link " + c.link + ")";
     torque.x_title = "time, s";
-    torque.y_title = "torque, N*m";
+    torque.y_title = "torque, " + c.unit;
     torque.series.push_back({"measured", c.time_s, c.measured, PlotSeries::Style::kMarkers});
     torque.series.push_back({"fitted", c.time_s, c.fitted, PlotSeries::Style::kLine});
     PlotPanel residual;
-    residual.title =
-        name + ": residual (fitted - measured), rms " + std::to_string(c.rms_residual) + " N*m";
+    residual.title = name + ": residual (fitted - measured), rms " +
+                     std::to_string(c.rms_residual) + " " + c.unit;
     residual.x_title = "time, s";
-    residual.y_title = "residual, N*m";
+    residual.y_title = "residual, " + c.unit;
     std::vector<double> r(c.fitted.size());
     for (size_t k = 0; k < r.size(); ++k) r[k] = c.fitted[k] - c.measured[k];
     residual.series.push_back({"", c.time_s, r, PlotSeries::Style::kLine});

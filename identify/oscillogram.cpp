@@ -4,6 +4,7 @@
 #include <cctype>
 
 #include "identify/comtrade.h"
+#include "identify/mat_record.h"
 #include "io/csv.h"
 #include "io/input_error.h"
 #include "io/toml_section.h"
@@ -11,35 +12,51 @@
 namespace millkit::identify {
 namespace {
 
-// The time column's accepted names, compared without case and blanks.
-bool IsTimeName(std::string name) {
-  std::string key;
-  for (const char c : name) {
-    if (c != ' ' && c != '\t')
-      key += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+std::string SeenColumns(const CsvTable& table) {
+  std::string seen;
+  for (size_t j = 0; j < table.columns.size(); ++j) {
+    seen += (seen.empty() ? "" : ", ") + table.columns[j];
+    if (!table.ids.empty() && table.ids[j] != table.columns[j]) seen += " " + table.ids[j];
   }
-  return key == "time" || key == "t" || key == "time_s" || key == "time[s]" || key == "t[s]";
+  return seen;
 }
 
-Oscillogram FromTable(const CsvTable& table) {
+// The time column: the one named in the options, else the one without a signal ID in an iba
+// export, else the one with a time name.
+int TimeColumn(const CsvTable& table, const RecordOptions& options) {
   const std::string header = table.source + ": line " + std::to_string(table.header_line);
+  if (!options.time_column.empty()) {
+    for (size_t j = 0; j < table.columns.size(); ++j) {
+      if (table.columns[j] == options.time_column ||
+          (!table.ids.empty() && table.ids[j] == options.time_column)) {
+        return static_cast<int>(j);
+      }
+    }
+    throw InputError(header + ": no column '" + options.time_column +
+                     "' (--time-column); seen: " + SeenColumns(table));
+  }
   int time_column = -1;
   for (size_t j = 0; j < table.columns.size(); ++j) {
-    if (!IsTimeName(table.columns[j])) continue;
+    const bool is_time =
+        table.ids.empty() ? IsTimeColumnName(table.columns[j]) : !IsSignalId(table.ids[j]);
+    if (!is_time) continue;
     if (time_column >= 0) {
       throw InputError(header + ": two time columns, '" + table.columns[time_column] + "' and '" +
-                       table.columns[j] + "'");
+                       table.columns[j] + "'; choose one with --time-column");
     }
     time_column = static_cast<int>(j);
   }
   if (time_column < 0) {
-    std::string seen;
-    for (const auto& c : table.columns) seen += (seen.empty() ? "" : ", ") + c;
-    throw InputError(header +
-                     ": no time column; expected one named 'time', 't', 'Time', "
-                     "'time_s' or 'Time [s]' (seen: " +
-                     seen + ")");
+    throw InputError(header + ": no time column; expected one named 'time', 't', 'Time', " +
+                     "'time_s' or 'Time [s]' (in an iba export: the column without a signal " +
+                     "ID), or one chosen with --time-column (seen: " + SeenColumns(table) + ")");
   }
+  return time_column;
+}
+
+Oscillogram FromTable(const CsvTable& table, const RecordOptions& options) {
+  const std::string header = table.source + ": line " + std::to_string(table.header_line);
+  const int time_column = TimeColumn(table, options);
   if (table.columns.size() < 2) {
     throw InputError(header + ": no channel column besides '" + table.columns[time_column] + "'");
   }
@@ -57,8 +74,8 @@ Oscillogram FromTable(const CsvTable& table) {
     if (unit == "ms") {
       time_scale = 1e-3;
     } else if (!unit.empty() && unit != "s") {
-      throw InputError(table.source + ": units row: time unit '" + table.units[time_column] +
-                       "' is not s or ms");
+      throw InputError(table.source + ": line " + std::to_string(table.units_line) +
+                       " (units row): time unit '" + table.units[time_column] + "' is not s or ms");
     }
   }
   RequireStrictlyIncreasing(table, time_column);
@@ -76,6 +93,7 @@ Oscillogram FromTable(const CsvTable& table) {
     }
     record.channels.push_back(table.columns[j]);
     record.units.push_back(table.units.empty() ? "" : table.units[j]);
+    if (!table.ids.empty()) record.ids.push_back(table.ids[j]);
     record.values.push_back(table.ColumnValues(static_cast<int>(j)));
   }
   return record;
@@ -83,9 +101,20 @@ Oscillogram FromTable(const CsvTable& table) {
 
 }  // namespace
 
+bool IsTimeColumnName(const std::string& name) {
+  std::string key;
+  for (const char c : name) {
+    if (c != ' ' && c != '\t')
+      key += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  }
+  return key == "time" || key == "t" || key == "time_s" || key == "time[s]" || key == "t[s]";
+}
+
 int Oscillogram::ChannelIndex(const std::string& name) const {
   const auto it = std::find(channels.begin(), channels.end(), name);
-  return it == channels.end() ? -1 : static_cast<int>(it - channels.begin());
+  if (it != channels.end()) return static_cast<int>(it - channels.begin());
+  const auto id = std::find(ids.begin(), ids.end(), name);
+  return id == ids.end() ? -1 : static_cast<int>(id - ids.begin());
 }
 
 std::pair<int, int> Oscillogram::WindowRange(double start, double end) const {
@@ -94,16 +123,25 @@ std::pair<int, int> Oscillogram::WindowRange(double start, double end) const {
   return {static_cast<int>(first - time_s.begin()), static_cast<int>(last - time_s.begin())};
 }
 
-Oscillogram LoadOscillogram(const std::filesystem::path& path) {
+Oscillogram LoadOscillogram(const std::filesystem::path& path, const RecordOptions& options) {
   std::string extension = path.extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  if (extension == ".cfg") return LoadComtrade(path);
-  return FromTable(ReadCsv(path));
+  if (extension == ".cfg") {
+    if (!options.time_column.empty()) {
+      throw InputError(path.string() +
+                       ": --time-column does not apply to a COMTRADE record (its time comes " +
+                       "from the .cfg's sample rates or the .dat's time stamps)");
+    }
+    return LoadComtrade(path);
+  }
+  if (extension == ".mat") return LoadMatRecord(path, options);
+  return FromTable(ReadCsv(path), options);
 }
 
-Oscillogram ParseOscillogram(const std::string& text, const std::string& source) {
-  return FromTable(ParseCsv(text, source));
+Oscillogram ParseOscillogram(const std::string& text, const std::string& source,
+                             const RecordOptions& options) {
+  return FromTable(ParseCsv(text, source), options);
 }
 
 std::vector<std::string> RecordLabels(const std::vector<Oscillogram>& records) {

@@ -1,7 +1,8 @@
 # Fails when a Catch2 test case name cannot become one ctest entry that runs it (issue 11): a ';'
 # splits the name into several entries that each run no test and pass; a name starting with '~'
-# or starting or ending with '*' is read by Catch2 as an exclusion or a wildcard, and a '"' is
-# quoted away. Usage: cmake -DEXE=<test executable> -P check_test_names.cmake
+# or starting or ending with '*' is read by Catch2 as an exclusion or a wildcard, one starting
+# with '-' as an option, and a '"' is quoted away.
+# Usage: cmake -DEXE=<test executable> -P check_test_names.cmake
 execute_process(COMMAND "${EXE}" --list-test-names-only OUTPUT_VARIABLE output)
 string(REPLACE ";" "<semicolon>" output "${output}")
 string(REPLACE "\n" ";" names "${output}")
@@ -12,7 +13,7 @@ foreach(name IN LISTS names)
     continue()
   endif()
   math(EXPR count "${count} + 1")
-  if(name MATCHES "<semicolon>|^[~*]|[*]$|\"")
+  if(name MATCHES "<semicolon>|^[-~*]|[*]$|\"")
     string(APPEND bad "\n  ${name}")
   endif()
 endforeach()
@@ -21,6 +22,6 @@ if(count EQUAL 0)
 endif()
 if(NOT bad STREQUAL "")
   message(FATAL_ERROR "${EXE}: test case names that ctest cannot run as one test each "
-                      "(no ';', no leading '~', no leading or trailing '*', no '\"'):${bad}")
+                      "(no ';', no leading '-' or '~', no leading or trailing '*', no '\"'):${bad}")
 endif()
 message(STATUS "${EXE}: ${count} test case names, each runnable under ctest")

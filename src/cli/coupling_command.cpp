@@ -1,6 +1,6 @@
 // millkit coupling SCENE.toml --config COUPLING.toml --out result.json [--curve curve.csv]
 //                  [--plot curve.svg] [--threads N]
-// Coupling stiffness (and damping) optimisation with NLopt (issue 5, SPEC.md §5). The
+// Coupling stiffness (and damping) optimisation with NLopt (issue 5; docs/coupling.md). The
 // configuration keys are documented in optimize/coupling/coupling_config.h.
 #include <iostream>
 #include <memory>

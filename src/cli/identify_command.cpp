@@ -32,6 +32,7 @@ struct IdentifyArgs {
   std::string out;
   std::string plot;
   std::string trace;
+  std::string time_column;
   bool quiet = false;
 };
 
@@ -57,8 +58,8 @@ std::string ParameterTable(const identify::FitResult& result, bool several_recor
     out << "channel " << c.column << (several_records ? "@" + c.record_label : "") << " -> "
         << c.link << ": gain " << std::setprecision(6) << c.gain << " +- " << std::setprecision(2)
         << c.gain_se << ", offset " << std::setprecision(6) << c.offset << " +- "
-        << std::setprecision(2) << c.offset_se << " N*m, rms residual " << std::setprecision(4)
-        << c.rms_residual << " N*m\n";
+        << std::setprecision(2) << c.offset_se << " " << c.unit << ", rms residual "
+        << std::setprecision(4) << c.rms_residual << " " << c.unit << "\n";
   }
   return out.str();
 }
@@ -83,7 +84,7 @@ void RunIdentify(const IdentifyArgs& args) {
   std::vector<identify::Oscillogram> records;
   std::string record_list;
   for (const auto& path : args.data) {
-    records.push_back(identify::LoadOscillogram(path));
+    records.push_back(identify::LoadOscillogram(path, {args.time_column}));
     for (const auto& note : records.back().notes)
       std::cerr << "millkit identify: note: " << note << "\n";
     record_list += (record_list.empty() ? "" : ", ") + path;
@@ -151,10 +152,14 @@ void AddIdentifyCommand(CLI::App& app) {
   command->add_option("scene", args->scene, "Scene TOML file")->required();
   command
       ->add_option("--data", args->data,
-                   "Record CSV: time, then channel columns. Give it once per record to fit "
-                   "several bites together (shared scene parameters; bite time, gain and "
-                   "offset per record)")
+                   "Record: a table (CSV, ';' or tab separated, iba ASCII export), a "
+                   "MATLAB .mat (v5 or v7.3) or a COMTRADE .cfg (docs/records.md). Give it "
+                   "once per record to fit several bites together (shared scene parameters; "
+                   "bite time, gain and offset per record)")
       ->required();
+  command->add_option("--time-column", args->time_column,
+                      "The records' time column (or MAT variable) by name or iba signal ID "
+                      "(default: the one named time, t, Time, time_s or Time [s])");
   command->add_option("--config", args->config,
                       "Fit TOML: [fit], [set], [[free]], [[channel]] (docs/identify.md; default: "
                       "damping and backlash of every link, bite_time; channels named like links)");

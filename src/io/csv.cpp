@@ -1,5 +1,6 @@
 #include "io/csv.h"
 
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <fstream>
@@ -103,7 +104,28 @@ bool ParseNumber(std::string cell, bool decimal_comma, double* value) {
   return ec == std::errc() && ptr == end && std::isfinite(*value);
 }
 
+// Whether a header is an iba signal-ID row: IDs in every column but at most one.
+bool IsSignalIdRow(const std::vector<std::string>& header) {
+  int ids = 0;
+  for (const auto& cell : header) ids += IsSignalId(cell) ? 1 : 0;
+  return ids > 0 && ids + 1 >= static_cast<int>(header.size());
+}
+
 }  // namespace
+
+bool IsSignalId(const std::string& cell) {
+  size_t k = 0;
+  const auto digits = [&cell, &k] {
+    const size_t first = k;
+    while (k < cell.size() && std::isdigit(static_cast<unsigned char>(cell[k]))) ++k;
+    return k > first;
+  };
+  if (cell.empty() || cell[k++] != '[' || !digits()) return false;
+  if (k >= cell.size() || (cell[k] != ':' && cell[k] != '.')) return false;
+  const bool analog = cell[k++] == ':';
+  if (!digits() || k >= cell.size() || cell[k++] != ']') return false;
+  return k == cell.size() || (analog && cell.substr(k) == "_text");
+}
 
 int CsvTable::Column(const std::string& name) const {
   for (size_t j = 0; j < columns.size(); ++j) {
@@ -150,8 +172,10 @@ CsvTable ParseCsv(const std::string& text, const std::string& source) {
         cells.pop_back();
         trailing_separator = true;
       }
+      // An iba export may leave its time column's ID cell empty (named by its names row).
+      const bool iba = IsSignalIdRow(cells);
       for (size_t j = 0; j < cells.size(); ++j) {
-        if (cells[j].empty()) {
+        if (cells[j].empty() && !iba) {
           throw InputError(Line(source, line_number) + ": header column " + std::to_string(j + 1) +
                            " has no name");
         }
@@ -176,16 +200,47 @@ CsvTable ParseCsv(const std::string& text, const std::string& source) {
 
   const bool decimal_comma = separator != ',';
   double value = 0.0;
-  // A units row: the first row after the header when none of its cells reads as a number.
-  if (!raw.empty()) {
+  // The rows after the header that hold no number: a units row in a plain table; names, units
+  // and info rows in an iba export.
+  std::vector<std::vector<std::string>> text_rows;
+  std::vector<int> text_lines;
+  while (!raw.empty()) {
     bool any_number = false;
     for (const auto& cell : raw.front())
       any_number = any_number || LooksNumeric(cell, decimal_comma);
-    if (!any_number) {
-      table.units = raw.front();
-      raw.erase(raw.begin());
-      table.line_numbers.erase(table.line_numbers.begin());
+    if (any_number) break;
+    text_rows.push_back(std::move(raw.front()));
+    text_lines.push_back(table.line_numbers.front());
+    raw.erase(raw.begin());
+    table.line_numbers.erase(table.line_numbers.begin());
+  }
+  if (IsSignalIdRow(table.columns)) {
+    table.ids = table.columns;
+    if (!text_rows.empty()) {
+      for (size_t j = 0; j < table.columns.size(); ++j) {
+        if (!text_rows[0][j].empty()) table.columns[j] = text_rows[0][j];
+      }
     }
+    for (size_t j = 0; j < table.columns.size(); ++j) {
+      if (table.columns[j].empty()) table.columns[j] = "time";  // the one cell without an ID
+    }
+    if (text_rows.size() > 1) {
+      table.units = text_rows[1];
+      table.units_line = text_lines[1];
+    }
+    if (text_rows.size() > 2) {
+      table.notes.push_back(Line(source, text_lines[2]) +
+                            (text_rows.size() > 3 ? "-" + std::to_string(text_lines.back()) : "") +
+                            ": iba info rows skipped");
+    }
+  } else if (text_rows.size() > 1) {
+    throw InputError(Line(source, text_lines[1]) + ": a second row without numbers after the " +
+                     "header (line " + std::to_string(table.header_line) +
+                     "); a table has one header row and at most one units row (or is an iba " +
+                     "export, whose first row holds signal IDs such as [3:12])");
+  } else if (text_rows.size() == 1) {
+    table.units = text_rows[0];
+    table.units_line = text_lines[0];
   }
   // A text column (a coil ID, a comment) is one none of whose cells reads as a number: skipped,
   // with a note. Any other cell that is not a finite number is an error.
@@ -199,11 +254,12 @@ CsvTable ParseCsv(const std::string& text, const std::string& source) {
                             "' holds no number and is skipped");
     }
   }
-  std::vector<std::string> columns, units;
+  std::vector<std::string> columns, units, ids;
   for (size_t j = 0; j < table.columns.size(); ++j) {
     if (!keep[j]) continue;
     columns.push_back(table.columns[j]);
     if (!table.units.empty()) units.push_back(table.units[j]);
+    if (!table.ids.empty()) ids.push_back(table.ids[j]);
   }
   for (size_t i = 0; i < raw.size(); ++i) {
     std::vector<double> row;
@@ -220,6 +276,7 @@ CsvTable ParseCsv(const std::string& text, const std::string& source) {
   }
   table.columns = std::move(columns);
   table.units = std::move(units);
+  table.ids = std::move(ids);
   return table;
 }
 
@@ -247,8 +304,8 @@ void RequireUnits(const CsvTable& table,
     }
     if (ok) continue;
     throw InputError(
-        table.source + ": line " + std::to_string(table.header_line + 1) +
-        " (units row), column '" + table.columns[j] + "': unit '" + unit + "' is not read here" +
+        table.source + ": line " + std::to_string(table.units_line) + " (units row), column '" +
+        table.columns[j] + "': unit '" + unit + "' is not read here" +
         (allowed.empty() ? std::string("; give no units row") : "; this column takes " + allowed));
   }
 }

@@ -5,6 +5,12 @@
 // every line; CRLF line ends; blank lines and '#' comment lines. A column none of whose cells is
 // a number (a coil ID) is skipped with a note. Any other cell that is not a finite number is an
 // InputError naming the file, the line (1-based) and the column.
+//
+// The ASCII export of iba loggers is read too: its first row holds signal IDs ([module:channel]
+// for analog, [module.channel] for digital, [module:channel]_text for text signals) in every
+// column but at most one (the time column). The rows after it that hold no number are, in this
+// order, the signal names, their units and any number of info rows (skipped with a note). A
+// column is then named by its signal name (its ID when the name is empty) and keeps its ID.
 #pragma once
 
 #include <filesystem>
@@ -18,8 +24,10 @@ struct CsvTable {
   std::string source;                     // file name, for error messages
   std::vector<std::string> columns;       // header names, trimmed, unquoted
   std::vector<std::string> units;         // from a units row (empty when there is none)
+  std::vector<std::string> ids;           // iba signal IDs per column (empty: not an iba file)
   std::vector<std::string> notes;         // what the reader skipped, for the user
   int header_line = 0;                    // line of the header row (1-based)
+  int units_line = 0;                     // line of the units row (0: none)
   std::vector<std::vector<double>> rows;  // rows[i][j]: data row i, column j
   std::vector<int> line_numbers;          // line in the file of each data row (1-based)
 
@@ -28,6 +36,9 @@ struct CsvTable {
   bool HasColumn(const std::string& name) const;
   std::vector<double> ColumnValues(int column) const;
 };
+
+// True for an iba signal ID: [m:c], [m.c] or [m:c]_text with decimal m and c.
+bool IsSignalId(const std::string& cell);
 
 // Reads a numeric CSV. Blank lines are skipped; lines starting with '#' are comments.
 // Throws InputError (file, line, column named) on an unreadable file, a missing header, a row with

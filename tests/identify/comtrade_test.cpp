@@ -18,6 +18,7 @@ namespace {
 
 using Catch::Matchers::Contains;
 using millkit::testing::ScratchDir;
+using millkit::identify::testing::CheckSameFit;
 using millkit::testing::WriteText;
 using testing::Mill5Config;
 using testing::Mill5Record;
@@ -102,15 +103,7 @@ TEST_CASE("COMTRADE ASCII reads the same record as its CSV and fits to the same 
   CHECK(record.values == csv.values);
   auto scene = Mill5Scene();
   const FitConfig config = Mill5Config(csv, &scene);
-  const FitResult a = Fit(scene, csv, config, FitOptions{});
-  const FitResult b = Fit(scene, record, config, FitOptions{});
-  REQUIRE(a.summary.success);
-  REQUIRE(b.summary.success);
-  CHECK(b.summary.verdict == a.summary.verdict);
-  for (size_t i = 0; i < a.parameters.size(); ++i) {
-    INFO(a.parameters[i].name);
-    CHECK(b.parameters[i].value == a.parameters[i].value);
-  }
+  CheckSameFit(Fit(scene, csv, config, FitOptions{}), Fit(scene, record, config, FitOptions{}));
 }
 
 TEST_CASE("COMTRADE binary files read within their resolution") {

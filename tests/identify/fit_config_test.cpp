@@ -9,10 +9,10 @@
 
 using namespace millkit::identify;
 using namespace millkit::identify::testing;
+using Catch::Matchers::Contains;
 using millkit::InputError;
 using millkit::testing::ScratchDir;
 using millkit::testing::WriteText;
-using Catch::Matchers::Contains;
 
 namespace {
 
@@ -49,9 +49,9 @@ TEST_CASE("A fit config loads its window, parameters and channels") {
 }
 
 TEST_CASE("An unknown parameter name is rejected naming the key") {
-  CHECK_THROWS_WITH(Load("[[free]]\nname = \"upper_spindle.colour\"\nlower = 0\nupper = 1\n"),
-                    Contains("fit.toml") && Contains("upper_spindle.colour") &&
-                        Contains("key 'name'"));
+  CHECK_THROWS_WITH(
+      Load("[[free]]\nname = \"upper_spindle.colour\"\nlower = 0\nupper = 1\n"),
+      Contains("fit.toml") && Contains("upper_spindle.colour") && Contains("key 'name'"));
 }
 
 TEST_CASE("Bounds with lower above upper are rejected") {
@@ -86,7 +86,8 @@ TEST_CASE("A channel column missing from the record is rejected") {
 }
 
 TEST_CASE("Unknown keys, unknown links and repeated parameters are rejected") {
-  CHECK_THROWS_WITH(Load(std::string("[fit]\nwindows = [0, 1]\n") + kFree), Contains("unknown key"));
+  CHECK_THROWS_WITH(Load(std::string("[fit]\nwindows = [0, 1]\n") + kFree),
+                    Contains("unknown key"));
   CHECK_THROWS_WITH(Load("[[free]]\nname = \"upper_spindle.damping\"\nlower = 100\nupper = 9e4\n"
                          "[[channel]]\ncolumn = \"upper_spindle\"\nlink = \"axle\"\n"),
                     Contains("no link named 'axle'"));
@@ -107,4 +108,71 @@ TEST_CASE("Without a config every column named like a link is fitted with its da
   CHECK(config.channels.size() == 2);
   // 4 dampings + 3 backlashes + bite_time.
   CHECK(config.free.size() == 8);
+}
+
+TEST_CASE("channel units: the config's unit, the units row's, and their agreement") {
+  CHECK(ParseTorqueUnit("N*m")->newton_metres == 1.0);
+  CHECK(ParseTorqueUnit("[kNm]")->name == "kN*m");
+  CHECK(ParseTorqueUnit("kN\xC2\xB7m")->newton_metres == 1e3);
+  CHECK(ParseTorqueUnit("MN.m")->newton_metres == 1e6);
+  CHECK_FALSE(ParseTorqueUnit("rpm"));
+  CHECK_FALSE(ParseTorqueUnit("mNm"));
+
+  const std::string free =
+      "[[free]]\nname = \"upper_spindle.damping\"\nlower = 500.0\n"
+      "upper = 30000.0\n";
+  SECTION("unit in the config converts weight and offset_limit to N*m") {
+    const FitConfig config = Load(free +
+                                  "[[channel]]\ncolumn = \"upper_spindle\"\nunit = \"kN*m\"\n"
+                                  "weight = 2.0\noffset_limit = 5.0\n");
+    CHECK(config.channels[0].unit.name == "kN*m");
+    CHECK(*config.channels[0].weight == 2.0e-3);
+    CHECK(*config.channels[0].offset_limit_Nm == 5.0e3);
+  }
+  SECTION("an unknown unit names the key") {
+    CHECK_THROWS_WITH(Load(free + "[[channel]]\ncolumn = \"upper_spindle\"\nunit = \"lbf*ft\"\n"),
+                      Contains("fit.toml") && Contains("unit") && Contains("\"kN*m\""));
+  }
+  SECTION("the units row gives the unit, and must agree with the config") {
+    Oscillogram record = Mill5Record(0.0, 0, 0.0, 1);
+    record.units = {"kNm", "rpm"};
+    ScratchDir dir;
+    auto scene = Mill5Scene();
+    WriteText(dir / "fit.toml", free + "[[channel]]\ncolumn = \"upper_spindle\"\n");
+    CHECK(LoadFitConfig((dir / "fit.toml").string(), record, scene).channels[0].unit.name ==
+          "kN*m");
+    WriteText(dir / "fit.toml",
+              free + "[[channel]]\ncolumn = \"upper_spindle\"\nunit = \"MN*m\"\n");
+    CHECK_THROWS_WITH(
+        LoadFitConfig((dir / "fit.toml").string(), record, scene),
+        Contains("units row") && Contains("kN*m") && Contains("MN*m") && Contains("agree"));
+    // A units row that is not a torque on a fitted channel.
+    WriteText(dir / "fit.toml", free + "[[channel]]\ncolumn = \"lower_spindle\"\n");
+    CHECK_THROWS_WITH(LoadFitConfig((dir / "fit.toml").string(), record, scene),
+                      Contains("'rpm' is not a torque unit"));
+  }
+}
+
+TEST_CASE("a record in kN*m fits to the N*m record's values and reports in kN*m") {
+  const Oscillogram record = Mill5Record(0.01, 12, 0.0, 3);
+  Oscillogram in_kNm = record;
+  for (auto& column : in_kNm.values) {
+    for (double& v : column) v /= 1e3;
+  }
+  auto scene = Mill5Scene();
+  const FitConfig config = Mill5Config(record, &scene);
+  FitConfig kNm_config = config;
+  for (auto& c : kNm_config.channels) c.unit = *ParseTorqueUnit("kN*m");
+  const FitResult a = Fit(scene, record, config, FitOptions{});
+  const FitResult b = Fit(scene, in_kNm, kNm_config, FitOptions{});
+  // v / 1e3 * 1e3 is v to an ulp: the fits agree within their convergence tolerance.
+  CheckSameFit(a, b, 1e-7);
+  for (size_t c = 0; c < a.channels.size(); ++c) {
+    CHECK(a.channels[c].unit == "N*m");
+    CHECK(b.channels[c].unit == "kN*m");
+    CHECK(b.channels[c].gain == Approx(a.channels[c].gain).epsilon(1e-7));
+    CHECK(b.channels[c].offset == Approx(a.channels[c].offset / 1e3).epsilon(1e-6));
+    CHECK(b.channels[c].rms_residual == Approx(a.channels[c].rms_residual / 1e3).epsilon(1e-6));
+    CHECK(b.channels[c].measured[7] == in_kNm.values[c][7]);
+  }
 }

@@ -3,6 +3,8 @@
 // datasets/records/mill5_two_spindles.spec.toml).
 #pragma once
 
+#include <catch2/catch.hpp>
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -17,12 +19,15 @@
 namespace millkit::identify::testing {
 
 inline const std::map<std::string, double>& Mill5Truth() {
-  static const std::map<std::string, double> truth = {
-      {"motor_shaft.damping", 32000.0},    {"main_coupling.damping", 75000.0},
-      {"upper_spindle.damping", 6200.0},   {"lower_spindle.damping", 3300.0},
-      {"main_coupling.backlash", 0.0052},  {"upper_spindle.backlash", 0.0235},
-      {"lower_spindle.backlash", 0.0265},  {"upper_spindle.stiffness", 1.15e7},
-      {"bite_time", 0.0537}};
+  static const std::map<std::string, double> truth = {{"motor_shaft.damping", 32000.0},
+                                                      {"main_coupling.damping", 75000.0},
+                                                      {"upper_spindle.damping", 6200.0},
+                                                      {"lower_spindle.damping", 3300.0},
+                                                      {"main_coupling.backlash", 0.0052},
+                                                      {"upper_spindle.backlash", 0.0235},
+                                                      {"lower_spindle.backlash", 0.0265},
+                                                      {"upper_spindle.stiffness", 1.15e7},
+                                                      {"bite_time", 0.0537}};
   return truth;
 }
 inline constexpr double kUpperGain = 1.03;
@@ -47,8 +52,7 @@ inline driveline::Scene Mill5TruthScene(const std::map<std::string, double>& ext
 
 // A two-channel record (upper and lower spindle torque) over 0.4 s, at 2 kHz unless given.
 inline Oscillogram Mill5Record(double noise_fraction, int bits, double lowpass_Hz,
-                               unsigned long seed,
-                               const std::map<std::string, double>& extra = {},
+                               unsigned long seed, const std::map<std::string, double>& extra = {},
                                double sample_rate_Hz = 2000.0) {
   RecordSpec spec;
   spec.defects.sample_rate_Hz = sample_rate_Hz;
@@ -67,8 +71,9 @@ inline Oscillogram Mill5Record(double noise_fraction, int bits, double lowpass_H
 // recorder filter as given, no scan and one start unless changed by the caller.
 inline FitConfig Mill5Config(const std::vector<Oscillogram>& records, driveline::Scene* scene,
                              double lowpass_Hz = 0.0) {
-  FitConfig config = LoadFitConfig(
-      millkit::testing::SourcePath("datasets/records/mill5_two_spindles.fit.toml"), records, *scene);
+  FitConfig config =
+      LoadFitConfig(millkit::testing::SourcePath("datasets/records/mill5_two_spindles.fit.toml"),
+                    records, *scene);
   ApplySetValues(config, scene);
   for (auto& channel : config.channels) channel.lowpass_Hz = lowpass_Hz;
   config.scan_points = 0;
@@ -78,6 +83,20 @@ inline FitConfig Mill5Config(const std::vector<Oscillogram>& records, driveline:
 inline FitConfig Mill5Config(const Oscillogram& record, driveline::Scene* scene,
                              double lowpass_Hz = 0.0) {
   return Mill5Config(std::vector<Oscillogram>{record}, scene, lowpass_Hz);
+}
+
+// Two fits that must agree: both succeed with the same verdict, and every parameter value agrees
+// within `relative` (0: bit for bit).
+inline void CheckSameFit(const FitResult& a, const FitResult& b, double relative = 0.0) {
+  REQUIRE(a.summary.success);
+  REQUIRE(b.summary.success);
+  CHECK(b.summary.verdict == a.summary.verdict);
+  REQUIRE(b.parameters.size() == a.parameters.size());
+  for (size_t i = 0; i < a.parameters.size(); ++i) {
+    INFO(a.parameters[i].name << ": " << a.parameters[i].value << " vs " << b.parameters[i].value);
+    CHECK(std::abs(b.parameters[i].value - a.parameters[i].value) <=
+          relative * std::abs(a.parameters[i].value));
+  }
 }
 
 }  // namespace millkit::identify::testing

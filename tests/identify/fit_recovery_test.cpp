@@ -20,7 +20,8 @@ void StartAwayFromTruth(int pattern, FitConfig* config) {
   for (auto& free : config->free) {
     const double truth = Mill5Truth().at(free.parameter.name);
     const double sign = ((i++ + pattern) % 2 == 0) ? 1.0 : -1.0;
-    free.start = free.parameter.name == "bite_time" ? truth + sign * 0.01 : truth * (1.0 + 0.5 * sign);
+    free.start =
+        free.parameter.name == "bite_time" ? truth + sign * 0.01 : truth * (1.0 + 0.5 * sign);
   }
 }
 
@@ -48,8 +49,9 @@ TEST_CASE("A noise-free record gives back every true value to 1e-6 from a +-50 %
   }
 }
 
-TEST_CASE("Records at 1 and 10 kHz and on an uneven grid give back the truth: the model is "
-          "sampled at the record's times") {
+TEST_CASE(
+    "Records at 1 and 10 kHz and on an uneven grid give back the truth: the model is "
+    "sampled at the record's times") {
   // The scene's own output grid is 5 kHz; none of these records lies on it.
   const auto check = [](const Oscillogram& record, const std::string& what) {
     auto scene = Mill5Scene();
@@ -106,7 +108,8 @@ TEST_CASE("A gap closed at idle is flagged not identifiable, the other parameter
   const std::map<std::string, double> balanced = {{"lower_spindle.gap_position", 1.0}};
   const Oscillogram record = Mill5Record(0.01, 12, 0.0, 7, balanced);
   auto scene = Mill5Scene();
-  millkit::driveline::ParseSceneParameter(scene, "lower_spindle.gap_position", "test").Set(1.0, &scene);
+  millkit::driveline::ParseSceneParameter(scene, "lower_spindle.gap_position", "test")
+      .Set(1.0, &scene);
   const FitConfig config = Mill5Config(record, &scene);
   const FitResult fit = Fit(scene, record, config, FitOptions{});
   REQUIRE(fit.summary.success);

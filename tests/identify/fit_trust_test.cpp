@@ -439,14 +439,7 @@ TEST_CASE("logger time: a record shifted by 7.25 s fits to the same values") {
   REQUIRE(b.time_origins_s.size() == 1);
   CHECK(b.time_origins_s[0] == 7.25);
   const auto compare = [&](const FitResult& a, double tolerance) {
-    REQUIRE(a.summary.success);
-    CHECK(b.summary.verdict == a.summary.verdict);
-    for (size_t i = 0; i < a.parameters.size(); ++i) {
-      INFO(a.parameters[i].name << ": " << a.parameters[i].value << " vs "
-                                << b.parameters[i].value);
-      CHECK(std::abs(b.parameters[i].value - a.parameters[i].value) <=
-            tolerance * std::abs(a.parameters[i].value));
-    }
+    testing::CheckSameFit(a, b, tolerance);
   };
   SECTION("against the record whose times are the shifted ones less 7.25 s: the same fit") {
     // t + 7.25 rounds away the last bits of t; with the same model times the fits are the same.

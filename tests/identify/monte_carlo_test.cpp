@@ -1,8 +1,7 @@
 // Monte Carlo over noisy records (issue 3): the reported standard errors are honest.
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <vector>
-
-#include <catch2/catch.hpp>
 
 #include "identify/fit.h"
 #include "identify/fit_fixture.h"
@@ -12,14 +11,15 @@ using namespace millkit::identify::testing;
 
 namespace {
 
-constexpr int kSeeds = 20;               // issue 3: >= 20 seeds
-constexpr double kCoverage = 0.90;       // truth within ±3 SE in >= 90 % of fits
-constexpr double kSpreadFactor = 1.5;    // observed spread vs reported SE within this factor
+constexpr int kSeeds = 20;             // issue 3: >= 20 seeds
+constexpr double kCoverage = 0.90;     // truth within ±3 SE in >= 90 % of fits
+constexpr double kSpreadFactor = 1.5;  // observed spread vs reported SE within this factor
 
 }  // namespace
 
-TEST_CASE("Over 20 noisy records the truth lies within 3 standard errors and the errors match "
-          "the spread") {
+TEST_CASE(
+    "Over 20 noisy records the truth lies within 3 standard errors and the errors match "
+    "the spread") {
   // 1 % noise, 12-bit ADC, gain and offset errors; no filter (a known filter is modelled, see
   // fit_recovery_test). Starts: the scene's nominal values (10–25 % off the truth). Window: the
   // bundled config's [0, 0.3] s (over [0, 0.4] s the misfit has a second minimum that the

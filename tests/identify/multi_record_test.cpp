@@ -51,8 +51,7 @@ TEST_CASE("Two noise-free records give back the shared values and each record's 
                          : p.name == "bite_time@bite_b" ? kSecondBite
                                                         : Mill5Truth().at(p.name);
     CHECK(std::abs(p.value - truth) <= 1e-6 * std::abs(truth));
-    CHECK(p.record == (p.name.rfind("bite_time@", 0) == 0 ? p.name.substr(10) + ".csv"
-                                                          : ""));
+    CHECK(p.record == (p.name.rfind("bite_time@", 0) == 0 ? p.name.substr(10) + ".csv" : ""));
   }
   // Gain and offset per record and channel, records one after another.
   REQUIRE(fit.channels.size() == 4);
@@ -146,7 +145,8 @@ TEST_CASE("The same file given twice is two records in the trace") {
   }
   const std::string trace = FitTraceCsv(result);
   CHECK(trace.rfind("record,time,upper_spindle.measured,upper_spindle.fitted,"
-                    "upper_spindle.residual\n", 0) == 0);
+                    "upper_spindle.residual\n",
+                    0) == 0);
   CHECK_THAT(trace, Contains("\nbite#1,0.001,2,2.5,0.5\n"));
   CHECK_THAT(trace, Contains("\nbite#2,0,1,1.5,0.5\n"));
 }

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <catch2/catch.hpp>
 
+#include "io/csv.h"
 #include "io/input_error.h"
 
 using namespace millkit::identify;
@@ -198,4 +199,75 @@ TEST_CASE("logger dialects: what is ambiguous is an error naming the line") {
   CHECK_THROWS_WITH(ParseOscillogram(bad_unit, "u.csv"), Contains("time unit 'min'"));
   // A decimal comma in a comma-separated file is a cell count error, not a silent misread.
   CHECK_THROWS_WITH(ParseOscillogram("time,upper\n0,1,5\n", "c.csv"), Contains("line 2: 3 cells"));
+}
+
+TEST_CASE("iba ASCII export: signal IDs, names, units and info rows read the same record") {
+  const Oscillogram plain = Plain();
+  // Tab separated with a decimal comma, as ibaAnalyzer writes it; a text signal is skipped.
+  std::string text = "\t[0:1]\t[0:2]\t[3:12]_text\nTime\tupper\tlower\tcoil\ns\tkNm\tkN*m\t\n";
+  text += "Plant: hot strip mill 2\t\t\t\nOperator: shift B\t\t\t\n";
+  for (size_t k = 0; k < plain.time_s.size(); ++k) {
+    std::string row = std::to_string(plain.time_s[k]) + "\t" + std::to_string(plain.values[0][k]) +
+                      "\t" + std::to_string(plain.values[1][k]) + "\tC-4711";
+    std::replace(row.begin(), row.end(), '.', ',');
+    text += row + "\n";
+  }
+  const auto record = ParseOscillogram(text, "iba.txt");
+  CheckSame(plain, record);
+  CHECK(record.ids == std::vector<std::string>{"[0:1]", "[0:2]"});
+  CHECK(record.units == std::vector<std::string>{"kNm", "kN*m"});
+  CHECK(record.ChannelIndex("[0:2]") == 1);
+  CHECK(record.ChannelIndex("lower") == 1);
+  CHECK(record.ChannelIndex("[0:3]") == -1);
+  REQUIRE(record.notes.size() == 2);
+  CHECK_THAT(record.notes[0], Contains("iba.txt: line 4-5") && Contains("info rows skipped"));
+  CHECK_THAT(record.notes[1], Contains("coil") && Contains("skipped"));
+
+  SECTION("without names the IDs name the channels") {
+    std::string bare = "time,[0:1],[0:2]\n";
+    for (size_t k = 0; k < plain.time_s.size(); ++k) {
+      bare += std::to_string(plain.time_s[k]) + "," + std::to_string(plain.values[0][k]) + "," +
+              std::to_string(plain.values[1][k]) + "\n";
+    }
+    const auto ids_only = ParseOscillogram(bare, "bare.txt");
+    CHECK(ids_only.channels == std::vector<std::string>{"[0:1]", "[0:2]"});
+    CHECK(ids_only.values == plain.values);
+  }
+}
+
+TEST_CASE("iba signal IDs: analog, digital and text forms, nothing else") {
+  using millkit::IsSignalId;
+  CHECK(IsSignalId("[3:12]"));
+  CHECK(IsSignalId("[0.7]"));
+  CHECK(IsSignalId("[3:12]_text"));
+  CHECK_FALSE(IsSignalId("[3.12]_text"));
+  CHECK_FALSE(IsSignalId("[3:]"));
+  CHECK_FALSE(IsSignalId("[a:1]"));
+  CHECK_FALSE(IsSignalId("3:12"));
+  CHECK_FALSE(IsSignalId("[3:12] x"));
+}
+
+TEST_CASE("the option --time-column chooses the time column, and the others become channels") {
+  const Oscillogram plain = Plain();
+  const std::string text = Rewrite(plain, "Zeit,upper,lower", ',', false);
+  CHECK_THROWS_WITH(ParseOscillogram(text, "z.csv"),
+                    Contains("no time column") && Contains("--time-column") && Contains("Zeit"));
+  CheckSame(plain, ParseOscillogram(text, "z.csv", {"Zeit"}));
+  CHECK_THROWS_WITH(ParseOscillogram(text, "z.csv", {"time"}),
+                    Contains("z.csv: line 1") && Contains("no column 'time' (--time-column)") &&
+                        Contains("seen: Zeit, upper, lower"));
+  // Two time-like names: the option settles which one is time; the other is a channel.
+  std::string two = "time,t,upper\n";
+  for (int k = 0; k < 20; ++k) two += std::to_string(k) + "," + std::to_string(2 * k) + ",1\n";
+  CHECK_THROWS_WITH(ParseOscillogram(two, "two.csv"), Contains("--time-column"));
+  const auto chosen = ParseOscillogram(two, "two.csv", {"t"});
+  CHECK(chosen.time_s[3] == 6.0);
+  CHECK(chosen.channels == std::vector<std::string>{"time", "upper"});
+}
+
+TEST_CASE("a plain table with two rows without numbers after its header is refused") {
+  std::string text = "time,upper\ns,N*m\nsecond,row\n";
+  for (int k = 0; k < 20; ++k) text += std::to_string(k) + ",1\n";
+  CHECK_THROWS_WITH(ParseOscillogram(text, "r.csv"),
+                    Contains("r.csv: line 3") && Contains("at most one units row"));
 }
