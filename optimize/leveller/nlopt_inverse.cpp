@@ -30,18 +30,21 @@ using Jet = ceres::Jet<double, 2>;
 
 struct Problem {
   const Linkage* linkage = nullptr;
+  bool cylinders = false;  // x are the cylinder lengths |AH|, |BG| (mm), not angles (rad)
   double target[2] = {0.0, 0.0};
   double start[2] = {0.0, 0.0};
   int evaluations = 0;
   bool assembly_failed = false;
 };
 
-// Y(β) − target and its Jacobian (mm, mm/rad); false when the linkage does not assemble.
-bool Residual(const Problem& p, const double* x_rad, double r[2], double jac[4]) noexcept {
-  const Jet b1 = Jet(x_rad[0], 0) * kRadToDeg;
-  const Jet b2 = Jet(x_rad[1], 1) * kRadToDeg;
+// Y(x) − target and its Jacobian (mm, mm/rad or mm/mm); false when the linkage does not assemble.
+bool Residual(const Problem& p, const double* x, double r[2], double jac[4]) noexcept {
   Intermesh<Jet> y;
-  if (!p.linkage->Forward(b1, b2, &y)) return false;
+  if (p.cylinders) {
+    if (!p.linkage->ForwardLengths(Jet(x[0], 0), Jet(x[1], 1), &y)) return false;
+  } else if (!p.linkage->Forward(Jet(x[0], 0) * kRadToDeg, Jet(x[1], 1) * kRadToDeg, &y)) {
+    return false;
+  }
   r[0] = y.y1.a - p.target[0];
   r[1] = y.y2.a - p.target[1];
   if (jac != nullptr) {
@@ -238,39 +241,68 @@ NloptInverseResult NloptInverse::Solve(double y1_mm, double y2_mm) const {
   return result;
 }
 
-ReachablePoint NearestReachable(const Linkage& linkage, double y1_mm, double y2_mm) {
-  const auto& geo = linkage.geometry();
-  const double lo = geo.beta_min_deg * kDegToRad;
-  const double hi = geo.beta_max_deg * kDegToRad;
+namespace {
+
+// Least squares from a grid of starts over the box [lo, hi]², keeping the nearest assembled pair.
+ReachablePoint NearestOverBox(const Linkage& linkage, double y1_mm, double y2_mm, bool cylinders,
+                              const double lo[2], const double hi[2]) {
   ReachablePoint best;
   best.distance_mm = std::numeric_limits<double>::infinity();
   for (int i = 0; i < kNearestStartsPerAxis; ++i) {
     for (int k = 0; k < kNearestStartsPerAxis; ++k) {
       Problem problem;
       problem.linkage = &linkage;
+      problem.cylinders = cylinders;
       problem.target[0] = y1_mm;
       problem.target[1] = y2_mm;
       nlopt::opt opt(nlopt::LD_SLSQP, 2);
-      opt.set_lower_bounds({lo, lo});
-      opt.set_upper_bounds({hi, hi});
-      opt.set_xtol_abs(1e-13);
+      opt.set_lower_bounds({lo[0], lo[1]});
+      opt.set_upper_bounds({hi[0], hi[1]});
+      opt.set_xtol_abs(cylinders ? 1e-10 : 1e-13);
       opt.set_ftol_abs(1e-24);
       opt.set_maxeval(400);
       opt.set_min_objective(LeastSquaresObjective, &problem);
-      std::vector<double> x{lo + (hi - lo) * i / (kNearestStartsPerAxis - 1),
-                            lo + (hi - lo) * k / (kNearestStartsPerAxis - 1)};
+      std::vector<double> x{lo[0] + (hi[0] - lo[0]) * i / (kNearestStartsPerAxis - 1),
+                            lo[1] + (hi[1] - lo[1]) * k / (kNearestStartsPerAxis - 1)};
       RunOptimizer(opt, x);
-      x[0] = std::clamp(x[0], lo, hi);
-      x[1] = std::clamp(x[1], lo, hi);
+      x[0] = std::clamp(x[0], lo[0], hi[0]);
+      x[1] = std::clamp(x[1], lo[1], hi[1]);
       Intermesh<double> y;
-      if (!linkage.Forward(x[0] * kRadToDeg, x[1] * kRadToDeg, &y)) continue;
+      const bool assembled = cylinders ? linkage.ForwardLengths(x[0], x[1], &y)
+                                       : linkage.Forward(x[0] * kRadToDeg, x[1] * kRadToDeg, &y);
+      if (!assembled) continue;
       const double distance = std::hypot(y.y1 - y1_mm, y.y2 - y2_mm);
-      if (distance < best.distance_mm) {
-        best = {y.y1, y.y2, x[0] * kRadToDeg, x[1] * kRadToDeg, distance};
+      if (distance >= best.distance_mm) continue;
+      best = ReachablePoint{};
+      best.y1_mm = y.y1;
+      best.y2_mm = y.y2;
+      if (cylinders) {
+        best.ah_mm = x[0];
+        best.bg_mm = x[1];
+      } else {
+        best.beta1_deg = x[0] * kRadToDeg;
+        best.beta2_deg = x[1] * kRadToDeg;
       }
+      best.distance_mm = distance;
     }
   }
   return best;
+}
+
+}  // namespace
+
+ReachablePoint NearestReachable(const Linkage& linkage, double y1_mm, double y2_mm) {
+  const auto& geo = linkage.geometry();
+  const double lo[2] = {geo.beta_min_deg * kDegToRad, geo.beta_min_deg * kDegToRad};
+  const double hi[2] = {geo.beta_max_deg * kDegToRad, geo.beta_max_deg * kDegToRad};
+  return NearestOverBox(linkage, y1_mm, y2_mm, false, lo, hi);
+}
+
+ReachablePoint NearestReachableByCylinders(const Linkage& linkage, double y1_mm, double y2_mm,
+                                           const HydraulicRange& cylinders) {
+  const double lo[2] = {cylinders.ah_min_mm, cylinders.bg_min_mm};
+  const double hi[2] = {cylinders.ah_max_mm, cylinders.bg_max_mm};
+  return NearestOverBox(linkage, y1_mm, y2_mm, true, lo, hi);
 }
 
 }  // namespace millkit::leveller

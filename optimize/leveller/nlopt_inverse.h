@@ -79,12 +79,18 @@ class NloptInverse {
 struct ReachablePoint {
   double y1_mm = 0.0;
   double y2_mm = 0.0;
-  double beta1_deg = 0.0;
+  double beta1_deg = 0.0;  // eccentric angles reaching it (NearestReachable)
   double beta2_deg = 0.0;
-  double distance_mm = 0.0;
+  double ah_mm = 0.0;  // cylinder lengths reaching it (NearestReachableByCylinders)
+  double bg_mm = 0.0;
+  double distance_mm = 0.0;  // infinity when no start assembled
 };
 
-// The reachable intermesh pair nearest to (y1, y2) (Euclidean in mm).
+// The reachable intermesh pair nearest to (y1, y2) (Euclidean in mm), over the eccentrics'
+// working range.
 ReachablePoint NearestReachable(const Linkage& linkage, double y1_mm, double y2_mm);
+// The same for the hydraulic variant, over the cylinders' length ranges.
+ReachablePoint NearestReachableByCylinders(const Linkage& linkage, double y1_mm, double y2_mm,
+                                           const HydraulicRange& cylinders);
 
 }  // namespace millkit::leveller

@@ -132,11 +132,15 @@ NloptInverseOptions InverseOptionsFor(const std::string& name) {
   return options;
 }
 
-// The nearest reachable pair, rounded to 1e-6 mm inward: moved past the boundary towards the
-// inside (away from the target) until the rounded pair itself is reachable, so that typed back as
-// a target it is accepted.
-ReachablePoint NearestInside(const Linkage& linkage, double y1, double y2) {
-  ReachablePoint nearest = NearestReachable(linkage, y1, y2);
+// The nearest reachable pair (by the eccentrics, or by the cylinders when `cylinders` is given),
+// rounded to 1e-6 mm inward: moved past the boundary towards the inside (away from the target)
+// until the rounded pair itself is reachable, so that typed back as a target it is accepted.
+// distance_mm is infinite when no such pair was found.
+ReachablePoint NearestInside(const Linkage& linkage, double y1, double y2,
+                             const HydraulicRange* cylinders) {
+  ReachablePoint nearest = cylinders ? NearestReachableByCylinders(linkage, y1, y2, *cylinders)
+                                     : NearestReachable(linkage, y1, y2);
+  if (!std::isfinite(nearest.distance_mm)) return nearest;
   const double d1 = nearest.y1_mm - y1;
   const double d2 = nearest.y2_mm - y2;
   const double length = std::hypot(d1, d2);
@@ -145,15 +149,24 @@ ReachablePoint NearestInside(const Linkage& linkage, double y1, double y2) {
     const double u2 = length > 0.0 ? nearest.y2_mm + step * d2 / length : nearest.y2_mm;
     const double r1 = std::round(u1 * 1e6) / 1e6;
     const double r2 = std::round(u2 * 1e6) / 1e6;
-    const AngleSetpoint check = linkage.InverseClosedForm(r1, r2);
-    if (check.status == InverseStatus::kOk || check.status == InverseStatus::kAssemblyMismatch) {
-      nearest.y1_mm = r1;
-      nearest.y2_mm = r2;
+    if (cylinders) {
+      const LengthSetpoint check = linkage.InverseLengths(r1, r2, *cylinders);
+      if (!check.ok()) continue;
+      nearest.ah_mm = check.ah_mm;
+      nearest.bg_mm = check.bg_mm;
+    } else {
+      const AngleSetpoint check = linkage.InverseClosedForm(r1, r2);
+      if (check.status != InverseStatus::kOk && check.status != InverseStatus::kAssemblyMismatch) {
+        continue;
+      }
       nearest.beta1_deg = check.beta1_deg;
       nearest.beta2_deg = check.beta2_deg;
-      return nearest;
     }
+    nearest.y1_mm = r1;
+    nearest.y2_mm = r2;
+    return nearest;
   }
+  nearest.distance_mm = std::numeric_limits<double>::infinity();
   return nearest;
 }
 
@@ -188,20 +201,26 @@ void RunInverse(const InverseArgs& args) {
     ++not_ok;
     double n1 = nan, n2 = nan;
     std::string message = Where(table, r) + ": " + status + ": " + why;
-    const ReachablePoint nearest = name_nearest ? NearestInside(linkage, y1, y2) : ReachablePoint{};
-    // The linkage's nearest pair serves the cylinders only when they reach it too.
-    const bool cylinders_reach =
-        !args.hydraulic ||
-        linkage.InverseLengths(nearest.y1_mm, nearest.y2_mm, config.hydraulic).ok();
-    if (name_nearest && !cylinders_reach) {
-      message += "; no reachable pair was found near it for the cylinders";
+    const ReachablePoint nearest =
+        name_nearest ? NearestInside(linkage, y1, y2, args.hydraulic ? &config.hydraulic : nullptr)
+                     : ReachablePoint{};
+    if (name_nearest && !std::isfinite(nearest.distance_mm)) {
+      message += "; no reachable pair was found near it";
     } else if (name_nearest) {
       n1 = nearest.y1_mm;
       n2 = nearest.y2_mm;
       char buffer[160];
-      std::snprintf(buffer, sizeof(buffer),
-                    "; nearest reachable (y1_mm, y2_mm) = (%.6f, %.6f) at beta = (%.4f, %.4f) deg",
-                    n1, n2, nearest.beta1_deg, nearest.beta2_deg);
+      if (args.hydraulic) {
+        std::snprintf(buffer, sizeof(buffer),
+                      "; nearest reachable (y1_mm, y2_mm) = (%.6f, %.6f) at (ah_mm, bg_mm) = "
+                      "(%.4f, %.4f)",
+                      n1, n2, nearest.ah_mm, nearest.bg_mm);
+      } else {
+        std::snprintf(buffer, sizeof(buffer),
+                      "; nearest reachable (y1_mm, y2_mm) = (%.6f, %.6f) at beta = (%.4f, %.4f) "
+                      "deg",
+                      n1, n2, nearest.beta1_deg, nearest.beta2_deg);
+      }
       message += buffer;
     }
     std::cerr << "millkit: warning: " << message << "\n";

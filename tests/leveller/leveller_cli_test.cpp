@@ -69,9 +69,13 @@ TEST_CASE("leveller inverse round-trips the forward output through files", "[lev
 TEST_CASE("leveller inverse writes every row with its status and exits 3 for an outside target",
           "[leveller][cli]") {
   ScratchDir dir;
+  const bool hydraulic = GENERATE(false, true);
+  INFO((hydraulic ? "cylinders" : "eccentrics"));
+  const std::string variant = hydraulic ? " --hydraulic" : "";
+  const std::string solved = hydraulic ? "ah_mm" : "beta1_deg";
   WriteText(dir / "targets.csv", "y1_mm,y2_mm\n0,0\n40,0\n1,-1\n");
-  const auto r = RunMillkit("leveller inverse --in " + Quote(dir / "targets.csv") + " --out " +
-                            Quote(dir / "b.csv"));
+  const auto r = RunMillkit("leveller inverse" + variant + " --in " + Quote(dir / "targets.csv") +
+                            " --out " + Quote(dir / "b.csv"));
   CHECK(r.exit_code == 3);
   CHECK_THAT(r.stderr_text, Contains("targets.csv:3") && Contains("nearest reachable") &&
                                 Contains("1 of 3 rows are not ok"));
@@ -94,7 +98,7 @@ TEST_CASE("leveller inverse writes every row with its status and exits 3 for an 
   CHECK(rows[1].back() == "ok");
   CHECK(rows[2].back() == "unreachable");
   CHECK(rows[3].back() == "ok");
-  CHECK(rows[2][column("beta1_deg")] == "nan");
+  CHECK(rows[2][column(solved)] == "nan");
   CHECK(std::stod(rows[1][column("nearest_y1_mm")]) == 0.0);  // a reachable target is its own
   const double n1 = std::stod(rows[2][column("nearest_y1_mm")]);
   const double n2 = std::stod(rows[2][column("nearest_y2_mm")]);
@@ -104,8 +108,8 @@ TEST_CASE("leveller inverse writes every row with its status and exits 3 for an 
     char line[128];
     std::snprintf(line, sizeof(line), "y1_mm,y2_mm\n%.6f,%.6f\n", n1, n2);
     WriteText(dir / "again.csv", line);
-    const auto again = RunMillkit("leveller inverse --in " + Quote(dir / "again.csv") + " --out " +
-                                  Quote(dir / "c.csv"));
+    const auto again = RunMillkit("leveller inverse" + variant + " --in " +
+                                  Quote(dir / "again.csv") + " --out " + Quote(dir / "c.csv"));
     INFO(again.stderr_text);
     CHECK(again.exit_code == 0);
     CHECK_THAT(ReadText(dir / "c.csv"), Contains(",ok\n"));

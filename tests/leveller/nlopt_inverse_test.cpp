@@ -93,6 +93,34 @@ TEST_CASE("The nearest reachable point of an outside target lies on the edge of 
   CHECK(p.distance_mm > 20.0);
 }
 
+TEST_CASE("The cylinders' nearest reachable point is the closest over their length ranges",
+          "[leveller][nlopt]") {
+  const HydraulicRange range;  // the seed's 525.913 ... 555.913 mm for both cylinders
+  for (const auto& [y1, y2] : {std::pair{40.0, 0.0}, {30.0, 30.0}, {-25.0, 10.0}}) {
+    INFO("target " << y1 << ", " << y2);
+    const ReachablePoint p = NearestReachableByCylinders(DefaultLinkage(), y1, y2, range);
+    REQUIRE(std::isfinite(p.distance_mm));
+    CHECK(p.ah_mm >= range.ah_min_mm);
+    CHECK(p.ah_mm <= range.ah_max_mm);
+    CHECK(p.bg_mm >= range.bg_min_mm);
+    CHECK(p.bg_mm <= range.bg_max_mm);
+    Intermesh<double> at;
+    REQUIRE(DefaultLinkage().ForwardLengths(p.ah_mm, p.bg_mm, &at));
+    CHECK_THAT(at.y1, WithinAbs(p.y1_mm, 1e-9));
+    // No point of a 0.05 mm grid over the two ranges is closer.
+    double grid_best = 1e9;
+    for (double ah = range.ah_min_mm; ah <= range.ah_max_mm + 1e-9; ah += 0.05) {
+      for (double bg = range.bg_min_mm; bg <= range.bg_max_mm + 1e-9; bg += 0.05) {
+        Intermesh<double> y;
+        if (DefaultLinkage().ForwardLengths(ah, bg, &y))
+          grid_best = std::min(grid_best, std::hypot(y.y1 - y1, y.y2 - y2));
+      }
+    }
+    CHECK(p.distance_mm <= grid_best + 1e-9);
+    CHECK(p.distance_mm > 0.0);
+  }
+}
+
 TEST_CASE("Invalid NLopt options are rejected naming the rule", "[leveller][nlopt]") {
   NloptInverseOptions options;
   options.algorithm = nlopt::LD_LBFGS;  // no equality constraints
