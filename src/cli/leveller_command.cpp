@@ -373,13 +373,20 @@ void RunTable(const TableArgs& args) {
   RequireUnits(strips, {});
   const auto cases = ReadStripCases(strips);
   const auto rows = ComputeSetpointTable(cases, config, options);
+  int not_ok = 0;
   for (const auto& row : rows) {
     for (const auto& w : row.warnings) {
       std::cerr << "millkit: warning: " << args.strips << ":" << row.input.line << ": " << w
                 << "\n";
     }
+    if (row.Status() != "ok") ++not_ok;
   }
   WriteFileAtomically(args.out, FormatSetpointTable(rows));
+  if (not_ok > 0) {
+    std::cerr << "millkit leveller table: " << not_ok << " of " << rows.size()
+              << " rows are not ok (status column of " << args.out << ")\n";
+    throw NotTrusted("leveller table");
+  }
 }
 
 }  // namespace

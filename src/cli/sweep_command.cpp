@@ -60,6 +60,7 @@ void RunSweep(const SweepArgs& args) {
   }
   WriteFileAtomically(args.out, csv);
   if (!args.plot.empty()) WriteFileAtomically(args.plot, svg);
+  if (summary.failed > 0) throw NotTrusted("sweep");  // a batch with failed rows: exit 3
 }
 
 }  // namespace

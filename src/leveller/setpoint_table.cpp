@@ -122,11 +122,16 @@ std::vector<TableRow> ComputeSetpointTable(const std::vector<StripCase>& cases,
   return rows;
 }
 
+std::string TableRow::Status() const {
+  if (!setpoint.summary.converged) return "not_converged";
+  return angles.ok() ? "ok" : "unreachable";
+}
+
 std::string FormatSetpointTable(const std::vector<TableRow>& rows) {
   std::string text =
       "line,yield_mpa,youngs_mpa,thickness_mm,width_mm,entry_plastic_ratio,y1_mm,y2_mm,y3_mm,"
       "beta1_deg,beta2_deg,p1_kN,p2_kN,p3_kN,p4_kN,p5_kN,p6_kN,p7_kN,total_force_kN,torque_kNm,"
-      "power_kW,exit_residual_curvature_ratio,accuracy_mm,warnings\n";
+      "power_kW,exit_residual_curvature_ratio,accuracy_mm,status,warnings\n";
   for (const auto& row : rows) {
     const auto& s = row.setpoint;
     const bool ok = row.angles.ok();
@@ -145,6 +150,7 @@ std::string FormatSetpointTable(const std::vector<TableRow>& rows) {
     cells.insert(cells.end(), {s.total_force_kN, s.straightening_torque_kNm, s.power_kW,
                                s.exit_residual_curvature_ratio, row.accuracy_mm});
     for (double v : cells) text += Cell(v) + ",";
+    text += row.Status() + ",";
     std::string warnings;
     for (const auto& w : row.warnings) warnings += (warnings.empty() ? "" : "; ") + w;
     std::replace(warnings.begin(), warnings.end(), ',', ' ');

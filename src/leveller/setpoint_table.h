@@ -43,13 +43,18 @@ struct TableRow {
   AngleSetpoint angles;      // status != kOk: stroke warning, angles not valid
   double accuracy_mm = 0.0;  // max ΔY over the three upper rolls (NaN if unreachable)
   std::vector<std::string> warnings;
+
+  // "ok"; "unreachable" (the intermesh is out of the linkage's reach: no angles); or
+  // "not_converged" (the strip solve did not converge). Limit warnings leave a row ok.
+  std::string Status() const;
 };
 
 std::vector<TableRow> ComputeSetpointTable(const std::vector<StripCase>& cases,
                                            const LevellerConfig& config,
                                            const TableOptions& options);
 
-// CSV text of the table (header + one line per row; warnings joined by "; ", no commas).
+// CSV text of the table (header + one line per row; status, then warnings joined by "; ", no
+// commas).
 std::string FormatSetpointTable(const std::vector<TableRow>& rows);
 
 }  // namespace millkit::leveller

@@ -129,17 +129,33 @@ TEST_CASE("leveller forces reproduces the seed's table in JSON when Mw is given"
   CHECK(json["mw_given"].get<bool>());
 }
 
-TEST_CASE("leveller table writes one row per strip with a warnings column", "[leveller][cli]") {
+TEST_CASE(
+    "leveller table writes every strip's row with status and warnings, exit 3 when one is "
+    "out of reach",
+    "[leveller][cli]") {
   ScratchDir dir;
   const auto r =
       RunMillkit("leveller table --strips " + Quote(SourcePath("datasets/leveller/strips.csv")) +
                  " --out " + Quote(dir / "t.csv"));
   INFO(r.stderr_text);
-  REQUIRE(r.exit_code == 0);
+  // 70 % of 1.6 mm (line 4) needs more plunge than the linkage has.
+  CHECK(r.exit_code == 3);
+  CHECK_THAT(r.stderr_text, Contains("rows are not ok (status column"));
   const std::string text = ReadText(dir / "t.csv");
-  CHECK_THAT(text, Contains("warnings") && Contains("beta1_deg") && Contains("power_kW"));
-  CHECK_THAT(text, Contains("stroke:"));  // 70 % of 1.6 mm needs more plunge than the linkage has
+  CHECK_THAT(text, Contains("accuracy_mm,status,warnings\n") && Contains("beta1_deg") &&
+                       Contains("power_kW"));
+  CHECK_THAT(text, Contains("\n4,") && Contains(",unreachable,stroke:"));
   CHECK_THAT(text, Contains("exceeds motor_power_kW"));
+  SECTION("a strip list within reach exits 0, its limit warnings kept") {
+    WriteText(dir / "ok.csv",
+              "yield_mpa,youngs_mpa,thickness_mm,width_mm,entry_plastic_ratio\n"
+              "550,210000,3,1250,0.6\n");
+    const auto ok = RunMillkit("leveller table --strips " + Quote(dir / "ok.csv") + " --out " +
+                               Quote(dir / "ok_table.csv"));
+    INFO(ok.stderr_text);
+    CHECK(ok.exit_code == 0);
+    CHECK_THAT(ReadText(dir / "ok_table.csv"), Contains(",ok,"));
+  }
 }
 
 TEST_CASE("Bad leveller input exits 2 with the file, line or key named and no output",

@@ -83,3 +83,20 @@ TEST_CASE("sweep refuses bad options with exit 2", "[sweep][cli][bad_input]") {
   CHECK(run.exit_code == 2);  // --config missing
   CHECK(dir.EntryCount() == 1);
 }
+
+TEST_CASE("a sweep with a failed case writes every row and exits 3", "[sweep][cli]") {
+  ScratchDir dir;
+  // 1e12 N*m/rad puts the spindle's mode beyond what the scene's sampling resolves: that case
+  // fails, its neighbour runs.
+  WriteText(dir / "sweep.toml",
+            "[sweep]\nmethod = \"grid\"\nlinks = [\"upper_spindle\"]\n[[parameter]]\n"
+            "name = \"upper_spindle.stiffness\"\nvalues = [1.2e7, 1e12]\n");
+  const auto run = RunMillkit("sweep " + Mill5() + " --config '" + (dir / "sweep.toml").string() +
+                              "' --out '" + (dir / "cases.csv").string() + "'");
+  INFO(run.stderr_text);
+  CHECK(run.exit_code == 3);
+  CHECK_THAT(run.stderr_text, Contains("1 case(s) failed"));
+  const std::string csv = ReadText(dir / "cases.csv");
+  CHECK(std::count(csv.begin(), csv.end(), '\n') == 1 + 2);
+  CHECK_THAT(csv, Contains("\n0,1.2e+07,ok,") && Contains("\n1,1e+12,failed,"));
+}
