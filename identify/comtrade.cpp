@@ -69,6 +69,7 @@ class CfgReader {
 
 struct Analog {
   std::string id;
+  std::string unit;  // the .cfg's uu field
   double a = 1.0;
   double b = 0.0;
 };
@@ -101,6 +102,7 @@ Oscillogram LoadComtrade(const std::filesystem::path& cfg_path) {
       throw InputError(cfg.Where() + ": an analog channel line needs at least 7 fields");
     Analog channel;
     channel.id = f[1];
+    channel.unit = f[4];
     channel.a = cfg.Number(f[5], "multiplier a");
     channel.b = cfg.Number(f[6], "offset b");
     if (channel.id.empty()) throw InputError(cfg.Where() + ": analog channel without an id");
@@ -137,7 +139,10 @@ Oscillogram LoadComtrade(const std::filesystem::path& cfg_path) {
     throw InputError(dat_path.string() + ": cannot open the .dat file of " + cfg_path.string());
   Oscillogram record;
   record.source = cfg_path.string();
-  for (const auto& a : analogs) record.channels.push_back(a.id);
+  for (const auto& a : analogs) {
+    record.channels.push_back(a.id);
+    record.units.push_back(a.unit);
+  }
   record.values.assign(analogs.size(), {});
   std::vector<double> stamps;
   if (type == "ASCII") {

@@ -1,8 +1,8 @@
 // COMTRADE records (IEEE C37.111-1999/2013), as iba's extractor and many drive recorders write
 // them: a .cfg file describing the channels and a .dat file of samples, ASCII, BINARY (int16),
 // BINARY32 (int32) or FLOAT32. Each analog channel becomes a record column named by its channel
-// id, its values a·x + b with a and b from the .cfg (in the unit the .cfg gives; MillKit expects
-// N·m). Digital channels are skipped. Time comes from the sample rates when the .cfg gives them
+// id, its values a·x + b with a and b from the .cfg, its unit the .cfg's (read like a units row:
+// N·m, kN·m or MN·m for a fitted channel, see fit_config.h). Digital channels are skipped. Time comes from the sample rates when the .cfg gives them
 // (samp > 0), else from each sample's timestamp (µs × timemult).
 #pragma once
 

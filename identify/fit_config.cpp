@@ -72,9 +72,13 @@ TorqueUnit ChannelUnit(const std::string& column, const std::optional<TorqueUnit
     if (j < 0 || j >= static_cast<int>(record.units.size()) || record.units[j].empty()) continue;
     const std::string row_where = record.source + ", units row of column '" + column + "'";
     const auto row_unit = ParseTorqueUnit(record.units[j]);
+    // The config's unit stands for a recorder's unit that is not a torque's (V after a
+    // calibration the recorder does not know); two torque units must agree.
+    if (!row_unit && configured) continue;
     if (!row_unit) {
       throw InputError(row_where + ": '" + record.units[j] +
-                       "' is not a torque unit; a channel takes N*m, kN*m or MN*m");
+                       "' is not a torque unit; a channel takes N*m, kN*m or MN*m (when its "
+                       "values are torques, give the unit in its [[channel]])");
     }
     if (unit && unit->name != row_unit->name) {
       throw InputError(row_where + " says " + row_unit->name + ", " + unit_source + " says " +

@@ -17,8 +17,8 @@ namespace millkit::identify {
 namespace {
 
 using Catch::Matchers::Contains;
-using millkit::testing::ScratchDir;
 using millkit::identify::testing::CheckSameFit;
+using millkit::testing::ScratchDir;
 using millkit::testing::WriteText;
 using testing::Mill5Config;
 using testing::Mill5Record;
@@ -31,7 +31,7 @@ std::string Cfg(const Oscillogram& record, const std::string& type, double a, do
   cfg += std::to_string(m + 1) + "," + std::to_string(m) + "A,1D\n";
   char line[256];
   for (size_t c = 0; c < m; ++c) {
-    std::snprintf(line, sizeof(line), "%zu,%s,,,kNm,%.17g,%.17g,0,-32767,32767,1,1,P\n", c + 1,
+    std::snprintf(line, sizeof(line), "%zu,%s,,,Nm,%.17g,%.17g,0,-32767,32767,1,1,P\n", c + 1,
                   record.channels[c].c_str(), a, b);
     cfg += line;
   }
@@ -101,6 +101,7 @@ TEST_CASE("COMTRADE ASCII reads the same record as its CSV and fits to the same 
   // Times k/samp from the .cfg's rate are the CSV's k/2000 exactly; values printed with 17 digits.
   CHECK(record.time_s == csv.time_s);
   CHECK(record.values == csv.values);
+  CHECK(record.units == std::vector<std::string>(csv.channels.size(), "Nm"));  // the .cfg's uu
   auto scene = Mill5Scene();
   const FitConfig config = Mill5Config(csv, &scene);
   CheckSameFit(Fit(scene, csv, config, FitOptions{}), Fit(scene, record, config, FitOptions{}));

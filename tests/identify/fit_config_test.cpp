@@ -150,6 +150,10 @@ TEST_CASE("channel units: the config's unit, the units row's, and their agreemen
     WriteText(dir / "fit.toml", free + "[[channel]]\ncolumn = \"lower_spindle\"\n");
     CHECK_THROWS_WITH(LoadFitConfig((dir / "fit.toml").string(), record, scene),
                       Contains("'rpm' is not a torque unit"));
+    // ... unless the config says what the values are (a recorder's V after calibration).
+    record.units = {"kNm", "V"};
+    WriteText(dir / "fit.toml", free + "[[channel]]\ncolumn = \"lower_spindle\"\nunit = \"N*m\"\n");
+    CHECK(LoadFitConfig((dir / "fit.toml").string(), record, scene).channels[0].unit.name == "N*m");
   }
 }
 
