@@ -21,6 +21,7 @@
 #include "io/input_error.h"
 #include "io/output_files.h"
 #include "io/progress_line.h"
+#include "io/toml_section.h"
 
 namespace millkit::cli {
 namespace {
@@ -117,8 +118,14 @@ void RunIdentify(const IdentifyArgs& args) {
   if (plot_file) plot_file->Commit();
   if (trace_file) trace_file->Commit();
   std::cout << "scene: " << scene.name << " (" << args.scene << "), "
-            << (records.size() > 1 ? "records: " : "record: ") << record_list << "\n"
-            << ParameterTable(result, records.size() > 1);
+            << (records.size() > 1 ? "records: " : "record: ") << record_list << "\n";
+  for (size_t r = 0; r < result.time_origins_s.size() && r < records.size(); ++r) {
+    if (result.time_origins_s[r] == 0.0) continue;
+    std::cout << "time origin: record time " << FormatNumber(result.time_origins_s[r]) << " s of "
+              << records[r].source << " is the model's t = 0 (bite_time counts from it; the "
+              << "window and traces are in record time)\n";
+  }
+  std::cout << ParameterTable(result, records.size() > 1);
   std::cerr << "millkit identify: verdict: " << result.summary.verdict << "\n";
   if (result.summary.verdict != "ok") throw NotTrusted("identify");
 }
