@@ -8,7 +8,9 @@
 
 namespace millkit::driveline {
 
-std::vector<double> NaturalFrequenciesHz(const driveline::Scene& scene) {
+std::vector<double> NaturalFrequenciesHz(const driveline::Scene& given) {
+  // Gear stages: on the reference shaft (inertia and stiffness · k²) the tree is ratio-free.
+  const driveline::Scene scene = ReducedScene(given);
   const int n = static_cast<int>(scene.masses.size());
   Eigen::MatrixXd k = Eigen::MatrixXd::Zero(n, n);
   Eigen::MatrixXd j = Eigen::MatrixXd::Zero(n, n);

@@ -3,7 +3,8 @@
 //   K = Σ_links c (e_from − e_to)(e_from − e_to)ᵀ,  J = diag(J_k),
 // solved as a generalized self-adjoint eigenproblem (Eigen::GeneralizedSelfAdjointEigenSolver).
 // Every link counts with its stiffness c (the spring-damper piece of its contact law, the
-// coupling's catalogue stiffness); no band reduction, no drive states (the speed controller is
+// coupling's catalogue stiffness), on the scene reduced to its reference shaft (ReducedScene:
+// gear ratios count); no band reduction, no drive states (the speed controller is
 // the drive's business, not the coupling's). A tree of N masses has one rigid-body mode (ω = 0)
 // and N − 1 elastic modes.
 //

@@ -28,6 +28,19 @@ TEST_CASE("two masses: one rigid-body mode and sqrt(c (1/J1 + 1/J2)) / 2π", "[c
   CHECK_THAT(LowestNaturalFrequencyHz(scene), WithinRel(expected, kEigenTolerance));
 }
 
+TEST_CASE("a gear stage counts: ω² = c (1/(J1 i²) + 1/J2), as the model's own mode",
+          "[coupling][modes]") {
+  // J1 = 10 on the fast side of a ratio-3 stage, c = 1e6 N*m/rad in the slow side's units:
+  // 28.07 Hz (without the ratio: 55.13 Hz, the coupling limit's old answer).
+  Scene scene = TwoMassScene(10.0, 50.0, 1.0e6, 0.0, 0.0, 0.1, 1000.0);
+  scene.links[0].ratio = 3.0;
+  const double expected = std::sqrt(1.0e6 * (1.0 / (10.0 * 9.0) + 1.0 / 50.0)) / (2.0 * kPi);
+  CHECK_THAT(expected, WithinAbs(28.07, 0.005));
+  CHECK_THAT(LowestNaturalFrequencyHz(scene), WithinRel(expected, kEigenTolerance));
+  const Scene reduced = ReducedScene(scene);
+  CHECK_THAT(HighestModeHz(reduced, ReduceToBand(reduced)), WithinRel(expected, kEigenTolerance));
+}
+
 TEST_CASE("three equal masses in a chain: ω² = c/J and 3c/J", "[coupling][modes]") {
   Scene scene = TwoMassScene(200.0, 200.0, 5.0e6, 0.0, 0.0, 0.1, 1000.0);
   millkit::testing::AppendMass(&scene, "c", 200.0, "second", 1);
