@@ -71,7 +71,8 @@ RecordSpec LoadRecordSpec(const std::string& path, driveline::Scene* scene) {
   return spec;
 }
 
-Oscillogram GenerateRecord(const driveline::Scene& truth, const RecordSpec& spec) {
+Oscillogram GenerateRecord(const driveline::Scene& truth, const RecordSpec& spec,
+                           const std::function<void(double fraction)>& progress) {
   const auto& d = spec.defects;
   driveline::Scene scene = truth;
   if (d.duration_s > 0.0) scene.duration_s = d.duration_s;
@@ -80,6 +81,7 @@ Oscillogram GenerateRecord(const driveline::Scene& truth, const RecordSpec& spec
   const driveline::Model model(std::move(scene));
   driveline::SimulationOptions options;
   options.estimate_error = false;
+  options.progress = progress;
   const auto result = driveline::Simulate(model, options);
   if (!result.summary.success) {
     throw SolverFailure("record generator: " + result.summary.message);

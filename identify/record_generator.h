@@ -24,6 +24,7 @@
 //   offset = 800.0             # N·m (default 0)
 #pragma once
 
+#include <functional>
 #include <random>
 #include <string>
 #include <vector>
@@ -61,7 +62,10 @@ struct RecordSpec {
 RecordSpec LoadRecordSpec(const std::string& path, driveline::Scene* scene);
 
 // Simulates `truth` and makes the record. Throws SolverFailure when the simulation fails.
-Oscillogram GenerateRecord(const driveline::Scene& truth, const RecordSpec& spec);
+// `progress`, when given, is called during the simulation with the fraction done
+// (SimulationOptions::progress).
+Oscillogram GenerateRecord(const driveline::Scene& truth, const RecordSpec& spec,
+                           const std::function<void(double fraction)>& progress = {});
 
 // Standard normal deviates from a seeded mt19937_64 (Box–Muller): the same sequence on every
 // platform, unlike std::normal_distribution.

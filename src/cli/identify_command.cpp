@@ -134,6 +134,7 @@ struct SynthesizeArgs {
   std::string scene;
   std::string spec;
   std::string out;
+  bool quiet = false;
 };
 
 void RunSynthesize(const SynthesizeArgs& args) {
@@ -141,7 +142,16 @@ void RunSynthesize(const SynthesizeArgs& args) {
   AtomicFile file(args.out);
   driveline::Scene scene = driveline::LoadScene(args.scene);
   const auto spec = identify::LoadRecordSpec(args.spec, &scene);
-  file.stream() << identify::FormatOscillogram(identify::GenerateRecord(scene, spec));
+  ProgressLine progress(args.quiet ? nullptr : &std::cerr, "synthesize");
+  const double duration_s =
+      spec.defects.duration_s > 0.0 ? spec.defects.duration_s : scene.duration_s;
+  const auto record = identify::GenerateRecord(scene, spec, [&](double fraction) {
+    if (!progress.Due()) return;
+    progress.Update(std::to_string(static_cast<int>(100.0 * fraction)) + " % of " +
+                    FormatNumber(duration_s) + " s simulated");
+  });
+  progress.Finish();
+  file.stream() << identify::FormatOscillogram(record);
   file.Commit();
 }
 
@@ -185,6 +195,7 @@ void AddIdentifyCommand(CLI::App& app) {
   generator->add_option("--spec", synth->spec, "Record spec TOML ([record], [truth], [[channel]])")
       ->required();
   generator->add_option("--out", synth->out, "Record CSV (written atomically)")->required();
+  generator->add_flag("--quiet", synth->quiet, "No progress line on stderr");
   generator->callback([synth] { RunSynthesize(*synth); });
 }
 

@@ -1,12 +1,16 @@
 // millkit simulate SCENE.toml --out result.csv [--solver exact|cvode] [--rtol X] [--atol X]
+//                  [--no-check] [--every N] [--columns LIST] [--kd-only] [--quiet]
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include "cli/commands.h"
+#include "driveline/result_csv.h"
 #include "driveline/simulation.h"
 #include "io/atomic_file.h"
 #include "io/input_error.h"
 #include "io/output_files.h"
+#include "io/progress_line.h"
 #include "io/toml_section.h"
 
 namespace millkit::cli {
@@ -19,38 +23,21 @@ struct SimulateArgs {
   double rtol = 1e-8;
   std::optional<double> atol;
   bool no_check = false;
+  int every = 1;
+  std::string columns;
+  bool kd_only = false;
+  bool quiet = false;
 };
 
-void WriteResultCsv(const driveline::Scene& scene, const driveline::SimulationResult& result,
-                    const std::string& path) {
-  AtomicFile file(path);
-  std::ostream& out = file.stream();
-  out << "time";
-  for (const auto& link : scene.links) out << "," << link.name;
-  for (const auto& mass : scene.masses) out << ",speed." << mass.name;
-  for (const auto& link : scene.links) out << ",twist." << link.name;
-  out << "\n";
-  // Shortest round-trip text for every number (std::to_chars): exact and fast.
-  std::string line;
-  const auto append = [&line](double value) { AppendNumber(value, &line); };
-  for (size_t k = 0; k < result.time_s.size(); ++k) {
-    const int row = static_cast<int>(k);
-    line.clear();
-    append(result.time_s[k]);
-    for (const auto* block :
-         {&result.link_torque_Nm, &result.mass_speed_rad_per_s, &result.link_twist_rad}) {
-      for (int j = 0; j < block->cols(); ++j) {
-        line += ',';
-        append((*block)(row, j));
-      }
-    }
-    line += '\n';
-    out << line;
-  }
-  file.Commit();
-}
-
 void RunSimulate(const SimulateArgs& args) {
+  if (args.kd_only) {
+    if (!args.out.empty()) throw InputError("option --out: --kd-only writes no CSV; drop --out");
+  } else if (args.out.empty()) {
+    throw InputError("option --out: required (or --kd-only for the Kd table alone)");
+  }
+  if (args.every < 1) {
+    throw InputError("option --every: must be >= 1 (got " + std::to_string(args.every) + ")");
+  }
   CheckOutputPaths({{"--out", args.out}}, {args.scene});
   driveline::SimulationOptions options;
   if (args.solver == "exact") {
@@ -64,10 +51,39 @@ void RunSimulate(const SimulateArgs& args) {
   options.atol = args.atol;
   options.Validate();
   const driveline::Model model(driveline::LoadScene(args.scene));
+  const driveline::Scene& scene = model.scene();
   for (const auto& line : model.reduction().report) std::cerr << "band reduction: " << line << "\n";
+
+  // Rows go to the file as the run produces them; only the peaks are held (keep_samples = false).
+  options.keep_samples = false;
+  std::optional<AtomicFile> file;
+  std::optional<driveline::ResultCsvWriter> writer;
+  if (!args.kd_only) {
+    auto columns = args.columns.empty()
+                       ? driveline::AllResultColumns(scene)
+                       : driveline::SelectResultColumns(scene, args.columns, "--columns");
+    const double bytes = driveline::EstimatedCsvBytes(
+        driveline::KeptRows(scene.SampleCount(), args.every), static_cast<int>(columns.size()) + 1);
+    const std::string warning = driveline::LargeOutputWarning(args.out, bytes);
+    if (!warning.empty()) std::cerr << warning << "\n";
+    file.emplace(args.out);
+    writer.emplace(&file->stream(), args.out, std::move(columns), args.every);
+    options.sample_sink = [&writer](const driveline::OutputSample& sample) {
+      writer->Write(sample);
+    };
+  }
   const bool check = options.solver == driveline::SolverKind::kCvode && !args.no_check;
+  ProgressLine progress(args.quiet ? nullptr : &std::cerr, "simulate");
+  const std::string of_run = check && options.rtol / 10.0 >= driveline::kMinRtol
+                                 ? " of both runs (rtol and rtol/10)"
+                                 : " of " + FormatNumber(scene.duration_s) + " s";
+  options.progress = [&](double fraction) {
+    if (!progress.Due()) return;
+    progress.Update(std::to_string(static_cast<int>(100.0 * fraction)) + " %" + of_run);
+  };
   const auto result =
       check ? driveline::SimulateCvodeChecked(model, options) : driveline::Simulate(model, options);
+  progress.Finish();
   std::cerr << result.summary.BriefReport() << "\n";
   if (!result.summary.success) throw SolverFailure(args.scene + ": " + result.summary.message);
   const double target = options.solver == driveline::SolverKind::kExact
@@ -82,8 +98,8 @@ void RunSimulate(const SimulateArgs& args) {
                       : "; tighten --rtol, or use --solver exact")
               << "\n";
   }
-  WriteResultCsv(model.scene(), result, args.out);
-  std::cout << "scene: " << model.scene().name << " (" << args.scene << ")\n"
+  if (file) file->Commit();
+  std::cout << "scene: " << scene.name << " (" << args.scene << ")\n"
             << driveline::FormatDynamicFactorTable(driveline::DynamicFactors(model, result));
 }
 
@@ -94,9 +110,11 @@ void AddSimulateCommand(CLI::App& app) {
   auto* command = app.add_subcommand(
       "simulate",
       "Simulate a drive-line scene; write link torques, speeds and twists to CSV and print the "
-      "dynamic-factor table");
+      "dynamic-factor table. Reference: docs/simulate.md");
   command->add_option("scene", args->scene, "Scene TOML file")->required();
-  command->add_option("--out", args->out, "Result CSV (written atomically)")->required();
+  command->add_option("--out", args->out,
+                      "Result CSV, written row by row as the run goes (atomically: nothing is "
+                      "left on failure). Required unless --kd-only");
   command->add_option("--solver", args->solver, "exact (default) or cvode");
   command->add_option("--rtol", args->rtol,
                       "CVODE relative tolerance (default 1e-8). CVODE runs twice, the second time "
@@ -108,6 +126,20 @@ void AddSimulateCommand(CLI::App& app) {
   command->add_option("--atol", args->atol,
                       "CVODE absolute tolerance as a fraction of each state's typical size "
                       "(default: rtol)");
+  auto* every = command->add_option(
+      "--every", args->every,
+      "Write every N-th output sample (k = 0, N, 2N, ...; default 1). Kd is still taken over "
+      "every sample");
+  auto* columns = command->add_option(
+      "--columns", args->columns,
+      "Comma list of the columns to write after time, in that order: link names (torque), "
+      "speed.<mass>, twist.<link> (default: all)");
+  command
+      ->add_flag("--kd-only", args->kd_only,
+                 "Print the dynamic-factor table only: no CSV, no samples held (the fastest run)")
+      ->excludes(every)
+      ->excludes(columns);
+  command->add_flag("--quiet", args->quiet, "No progress line on stderr");
   command->callback([args] { RunSimulate(*args); });
 }
 

@@ -100,8 +100,8 @@ SimulationResult SimulateCvode(const Model& model, const SimulationOptions& opti
   summary.reduction = model.reduction().report;
   summary.error_kind = "requested tolerance";
   summary.error_estimate = options.rtol;
-  OutputRecorder recorder(model, options, OutputTimes(scene, options), &result);
-  const std::vector<double>& times = recorder.times();
+  OutputRecorder recorder(model, options, &result);
+  const OutputGrid& times = recorder.times();
   const int samples = recorder.size();
   // Time scale for "events that do not advance time".
   const double h = 1.0 / scene.sample_rate_Hz;
@@ -273,6 +273,7 @@ SimulationResult SimulateCvode(const Model& model, const SimulationOptions& opti
     }
     harvest();
   } catch (const std::exception& e) {
+    if (recorder.callback_error()) throw;  // the caller's sink or progress, not a solver failure
     summary.message = e.what();
   }
   summary.steps = steps;

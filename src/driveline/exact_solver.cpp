@@ -178,9 +178,9 @@ void BalanceScale(const Model& model, Eigen::VectorXd* scale) {
 
 // The step whose propagator is cached per phase set: the scene's sample interval, or for given
 // output times the median gap (an oscillogram's sampling interval).
-double CachedStepLength(const Scene& scene, const SimulationOptions& options,
-                        const std::vector<double>& times) {
-  if (!options.output_times || times.size() < 2) return 1.0 / scene.sample_rate_Hz;
+double CachedStepLength(const Scene& scene, const SimulationOptions& options) {
+  if (!options.output_times || options.output_times->size() < 2) return 1.0 / scene.sample_rate_Hz;
+  const std::vector<double>& times = *options.output_times;
   std::vector<double> gaps(times.size() - 1);
   for (size_t k = 1; k < times.size(); ++k) gaps[k - 1] = times[k] - times[k - 1];
   std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
@@ -932,7 +932,7 @@ MILLKIT_HOT bool ExactIntegrator::FindEvent(const PhaseData& data,
 MILLKIT_HOT void ExactIntegrator::Record(OutputRecorder* recorder, int k, const double* y,
                                          const double* torque) {
   const int links = static_cast<int>(twist_index_.size());
-  if (recorder->keep_samples()) {
+  if (recorder->wants_rows()) {
     double* speed = recorder->speed(k);
     for (size_t i = 0; i < speed_index_.size(); ++i) {
       speed[i] = scale_[speed_index_[i]] * y[speed_index_[i]];
@@ -953,10 +953,10 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
   SimulationSummary& summary = result_.summary;
   summary.solver = "exact";
   summary.reduction = model_.reduction().report;
-  OutputRecorder recorder(model_, options_, OutputTimes(scene, options_), &result_);
-  const std::vector<double>& times = recorder.times();
+  OutputRecorder recorder(model_, options_, &result_);
+  const OutputGrid& times = recorder.times();
   const int samples = recorder.size();
-  h_ = CachedStepLength(scene, options_, times);
+  h_ = CachedStepLength(scene, options_);
   scale_ = AugmentedScale(model_, h_);
   BalanceScale(model_, &scale_);
   inverse_scale_ = scale_.cwiseInverse();

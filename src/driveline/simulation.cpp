@@ -82,10 +82,17 @@ SimulationResult SimulateCvodeChecked(const Model& model, const SimulationOption
   finer.solver = SolverKind::kCvode;
   finer.rtol = options.rtol / 10.0;
   if (options.atol) finer.atol = *options.atol / 10.0;
-  finer.keep_samples = true;
+  finer.keep_samples = true;  // the check compares every sample
+  finer.sample_sink = nullptr;
   SimulationOptions first = finer;
   first.rtol = options.rtol;
   first.atol = options.atol;
+  first.sample_sink = options.sample_sink;
+  // The two runs share the progress range: the first half, then the second.
+  if (options.progress) {
+    first.progress = [&options](double fraction) { options.progress(0.5 * fraction); };
+    finer.progress = [&options](double fraction) { options.progress(0.5 + 0.5 * fraction); };
+  }
   SimulationResult result = SimulateCvode(model, first);
   if (!result.summary.success) return result;
   const SimulationResult reference = SimulateCvode(model, finer);

@@ -15,6 +15,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -24,6 +25,17 @@
 namespace millkit::driveline {
 
 enum class SolverKind { kExact, kCvode };
+
+// One output sample as SimulationOptions::sample_sink receives it: the values the sample matrices
+// of SimulationResult would hold, bit for bit, in each object's own units. The rows are valid only
+// during the call.
+struct OutputSample {
+  int index = 0;  // k, among the run's output times
+  double time_s = 0.0;
+  const double* link_torque_Nm = nullptr;        // one per scene link
+  const double* mass_speed_rad_per_s = nullptr;  // one per scene mass
+  const double* link_twist_rad = nullptr;        // one per scene link
+};
 
 struct SimulationOptions {
   SolverKind solver = SolverKind::kExact;
@@ -46,6 +58,14 @@ struct SimulationOptions {
   // false: the sample matrices and time_s of the result stay empty and only the peak fields are
   // filled (the fast path for sweeps and optimisation that need only Kd).
   bool keep_samples = true;
+  // Called with every output sample, in time order, once it is final. With keep_samples = false
+  // nothing is held: the way to stream a long run to a file in bounded memory. An exception it
+  // throws ends the run and propagates out of Simulate* (the Summary is lost).
+  std::function<void(const OutputSample&)> sample_sink;
+  // Called after every output sample with the fraction of the run's output samples done, in
+  // (0, 1] (SimulateCvodeChecked: its two runs share the range); for a progress line. Same rule
+  // for exceptions as sample_sink.
+  std::function<void(double fraction)> progress;
 
   // Throws InputError naming the broken rule (e.g. rtol outside [1e-14, 1e-2]). Without a scene
   // the rule last output time <= duration is not checked; Simulate* check it.
@@ -95,6 +115,26 @@ struct SimulationResult {
 // The times a run samples: options.output_times when given, else the scene grid k / sample_rate,
 // k = 0 … SampleCount() − 1.
 std::vector<double> OutputTimes(const Scene& scene, const SimulationOptions& options);
+
+// The same times without holding the scene grid (a 1e4 s scene at 5 kHz has 5e7 of them): given
+// output times are referenced, so `options` must outlive the grid; grid time k is computed as
+// OutputTimes computes it, bit for bit.
+class OutputGrid {
+ public:
+  OutputGrid(const Scene& scene, const SimulationOptions& options)
+      : given_(options.output_times ? &*options.output_times : nullptr),
+        h_(1.0 / scene.sample_rate_Hz),
+        size_(given_ ? static_cast<int>(given_->size()) : scene.SampleCount()) {}
+  int size() const { return size_; }
+  double operator[](int k) const { return given_ ? (*given_)[k] : k * h_; }
+  double front() const { return (*this)[0]; }
+  double back() const { return (*this)[size_ - 1]; }
+
+ private:
+  const std::vector<double>* given_;
+  double h_;
+  int size_;
+};
 
 // Each validates the options against the model's scene first (throws InputError).
 SimulationResult Simulate(const Model& model, const SimulationOptions& options);

@@ -1,9 +1,11 @@
-// SimulationOptions::output_times and keep_samples (issue 2): sampling on a grid unrelated to the
-// scene's, and the Kd-only fast path.
+// SimulationOptions::output_times, keep_samples, sample_sink and progress (issues 2, 13): sampling
+// on a grid unrelated to the scene's, the Kd-only fast path, and streaming a run sample by sample.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <functional>
 #include <limits>
 
 #include "driveline/simulation.h"
@@ -191,5 +193,140 @@ TEST_CASE("The peak fields are the max |torque| over the kept samples and its fi
     const double peak = result.link_torque_Nm.col(l).cwiseAbs().maxCoeff(&at);
     CHECK(result.peak_abs_torque_Nm[l] == peak);
     CHECK(result.peak_time_s[l] == result.time_s[at]);
+  }
+}
+
+namespace {
+// A copy of each sample the sink receives, as rows of the result matrices.
+struct SinkCopy {
+  std::vector<double> time_s;
+  std::vector<int> index;
+  std::vector<std::vector<double>> torque, speed, twist;
+};
+
+std::function<void(const OutputSample&)> CopyTo(SinkCopy* copy, const Scene& scene) {
+  const size_t links = scene.links.size(), masses = scene.masses.size();
+  return [copy, links, masses](const OutputSample& s) {
+    copy->index.push_back(s.index);
+    copy->time_s.push_back(s.time_s);
+    copy->torque.emplace_back(s.link_torque_Nm, s.link_torque_Nm + links);
+    copy->speed.emplace_back(s.mass_speed_rad_per_s, s.mass_speed_rad_per_s + masses);
+    copy->twist.emplace_back(s.link_twist_rad, s.link_twist_rad + links);
+  };
+}
+
+bool RowsEqual(const SampleMatrix& matrix, const std::vector<std::vector<double>>& rows) {
+  if (static_cast<size_t>(matrix.rows()) != rows.size()) return false;
+  for (int k = 0; k < matrix.rows(); ++k) {
+    for (int j = 0; j < matrix.cols(); ++j) {
+      if (matrix(k, j) != rows[k][j]) return false;
+    }
+  }
+  return true;
+}
+
+// The five-mass bite, and a geared two-mass line whose outputs are converted per shaft.
+std::vector<Scene> SinkScenes() {
+  Scene geared = testing::TwoMassScene(50.0, 20.0, 1.0e5, 20.0, 0.01, 0.2, 4000.0);
+  geared.links[0].ratio = 3.0;
+  geared.initial_speed_rad_per_s = 5.0;
+  geared.torques = {testing::Step(1, 0.0, -3000.0, 0.02, 0.005),
+                    testing::Step(0, 0.0, 200.0, 0.05, 0.0)};
+  return {FiveMass().scene(), geared};
+}
+}  // namespace
+
+TEST_CASE(
+    "A sample sink without kept samples receives every sample exactly as the matrices hold it",
+    "[output][stream]") {
+  for (const Scene& scene : SinkScenes()) {
+    const Model model(scene);
+    for (auto solver : {SolverKind::kExact, SolverKind::kCvode}) {
+      SimulationOptions options;
+      options.solver = solver;
+      const auto kept = Simulate(model, options);
+      SinkCopy copy;
+      options.keep_samples = false;
+      options.sample_sink = CopyTo(&copy, model.scene());
+      const auto streamed = Simulate(model, options);
+      REQUIRE(kept.summary.success);
+      REQUIRE(streamed.summary.success);
+      CHECK(streamed.link_torque_Nm.size() == 0);
+      REQUIRE(copy.time_s.size() == kept.time_s.size());
+      for (size_t k = 0; k < copy.index.size(); ++k) REQUIRE(copy.index[k] == static_cast<int>(k));
+      CHECK(copy.time_s == kept.time_s);
+      CHECK(RowsEqual(kept.link_torque_Nm, copy.torque));
+      CHECK(RowsEqual(kept.mass_speed_rad_per_s, copy.speed));
+      CHECK(RowsEqual(kept.link_twist_rad, copy.twist));
+    }
+  }
+}
+
+TEST_CASE("Kd is bit-identical whether samples are kept, streamed or neither", "[output][stream]") {
+  for (const Scene& scene : SinkScenes()) {
+    const Model model(scene);
+    for (auto solver : {SolverKind::kExact, SolverKind::kCvode}) {
+      SimulationOptions options;
+      options.solver = solver;
+      const auto plain = DynamicFactors(model, Simulate(model, options));
+      SinkCopy copy;
+      options.sample_sink = CopyTo(&copy, model.scene());
+      options.progress = [](double) {};
+      const auto kept_and_streamed = DynamicFactors(model, Simulate(model, options));
+      options.keep_samples = false;
+      const auto streamed = DynamicFactors(model, Simulate(model, options));
+      options.sample_sink = nullptr;
+      const auto peaks_only = DynamicFactors(model, Simulate(model, options));
+      for (const auto* other : {&kept_and_streamed, &streamed, &peaks_only}) {
+        REQUIRE(other->size() == plain.size());
+        for (size_t l = 0; l < plain.size(); ++l) {
+          CHECK(std::memcmp(&(*other)[l].kd, &plain[l].kd, sizeof(double)) == 0);
+          CHECK((*other)[l].peak_torque_Nm == plain[l].peak_torque_Nm);
+          CHECK((*other)[l].peak_time_s == plain[l].peak_time_s);
+        }
+      }
+    }
+  }
+}
+
+TEST_CASE("Progress rises once per output sample to 1, over both runs of a checked CVODE run",
+          "[output][stream]") {
+  const Model model = FiveMass();
+  const int samples = model.scene().SampleCount();
+  SimulationOptions options;
+  std::vector<double> fractions;
+  options.progress = [&fractions](double f) { fractions.push_back(f); };
+  REQUIRE(Simulate(model, options).summary.success);
+  REQUIRE(fractions.size() == static_cast<size_t>(samples));
+  CHECK(std::is_sorted(fractions.begin(), fractions.end()));
+  CHECK(fractions.front() > 0.0);
+  CHECK(fractions.back() == 1.0);
+
+  fractions.clear();
+  options.solver = SolverKind::kCvode;
+  int streamed = 0;
+  options.sample_sink = [&streamed](const OutputSample&) { ++streamed; };
+  REQUIRE(SimulateCvodeChecked(model, options).summary.success);
+  CHECK(streamed == samples);  // the check run streams nothing
+  REQUIRE(fractions.size() == static_cast<size_t>(2 * samples));
+  CHECK(std::is_sorted(fractions.begin(), fractions.end()));
+  CHECK(fractions[samples - 1] == 0.5);
+  CHECK(fractions.back() == 1.0);
+}
+
+TEST_CASE("An exception thrown by the sample sink ends the run and leaves both solvers",
+          "[output][stream]") {
+  const Model model = FiveMass();
+  for (auto solver : {SolverKind::kExact, SolverKind::kCvode}) {
+    SimulationOptions options;
+    options.solver = solver;
+    options.keep_samples = false;
+    int calls = 0;
+    options.sample_sink = [&calls](const OutputSample& sample) {
+      ++calls;
+      if (sample.index == 10) throw millkit::InputError("disk full");
+    };
+    CHECK_THROWS_WITH(Simulate(model, options), Contains("disk full"));
+    CHECK(calls == 11);
   }
 }

@@ -3,7 +3,12 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <vector>
+
+#include "driveline/scene.h"
 #include "identify/oscillogram.h"
+#include "identify/record_generator.h"
 #include "support/run_cli.h"
 
 using Catch::Matchers::Contains;
@@ -116,4 +121,20 @@ TEST_CASE("synthesize writes the bundled record again, to within one ADC step") 
     }
     CHECK(differing <= 2);
   }
+}
+
+TEST_CASE("The record generator reports its progress up to the end and the record is unchanged") {
+  auto scene = millkit::driveline::LoadScene(SourcePath("datasets/scenes/mill5_bite.toml"));
+  const auto spec = millkit::identify::LoadRecordSpec(
+      SourcePath("datasets/records/mill5_two_spindles.spec.toml"), &scene);
+  std::vector<double> fractions;
+  const auto with = millkit::identify::GenerateRecord(
+      scene, spec, [&fractions](double f) { fractions.push_back(f); });
+  const auto without = millkit::identify::GenerateRecord(scene, spec);
+  // The spec's 0.4 s at 2 kHz, simulated 16 times finer: 800 · 16 + 1 samples.
+  CHECK(fractions.size() == 800 * 16 + 1);
+  CHECK(std::is_sorted(fractions.begin(), fractions.end()));
+  CHECK(fractions.back() == 1.0);
+  CHECK(with.time_s == without.time_s);
+  CHECK(with.values == without.values);
 }
