@@ -2,16 +2,18 @@
 // files.
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
+#include <regex>
 
 #include "identify/oscillogram.h"
+#include "io/toml_section.h"
 #include "support/run_cli.h"
 
+using Catch::Matchers::Contains;
 using millkit::testing::ReadText;
 using millkit::testing::RunMillkit;
 using millkit::testing::ScratchDir;
 using millkit::testing::SourcePath;
 using millkit::testing::WriteText;
-using Catch::Matchers::Contains;
 
 namespace {
 
@@ -24,12 +26,10 @@ std::string Bundled(const std::string& name) {
 
 TEST_CASE("identify fits the bundled record and writes JSON, trace and plot") {
   ScratchDir dir;
-  const auto result = RunMillkit("identify " + Scene() + " --data " +
-                                 Bundled("mill5_two_spindles.csv") + " --config " +
-                                 Bundled("mill5_two_spindles.fit.toml") + " --out '" +
-                                 (dir / "fit.json").string() + "' --plot '" +
-                                 (dir / "fit.svg").string() + "' --trace '" +
-                                 (dir / "fit.csv").string() + "'");
+  const auto result = RunMillkit(
+      "identify " + Scene() + " --data " + Bundled("mill5_two_spindles.csv") + " --config " +
+      Bundled("mill5_two_spindles.fit.toml") + " --out '" + (dir / "fit.json").string() +
+      "' --plot '" + (dir / "fit.svg").string() + "' --trace '" + (dir / "fit.csv").string() + "'");
   INFO(result.stderr_text);
   REQUIRE(result.exit_code == 0);
   const auto fit = nlohmann::json::parse(ReadText(dir / "fit.json"));
@@ -37,12 +37,15 @@ TEST_CASE("identify fits the bundled record and writes JSON, trace and plot") {
   CHECK(fit["parameters"].size() == 9);
   CHECK(fit["not_identifiable"].empty());
   // The truth of datasets/records/mill5_two_spindles.spec.toml within 4 standard errors.
-  const std::map<std::string, double> truth = {
-      {"motor_shaft.damping", 32000.0},   {"main_coupling.damping", 75000.0},
-      {"upper_spindle.damping", 6200.0},  {"lower_spindle.damping", 3300.0},
-      {"main_coupling.backlash", 0.0052}, {"upper_spindle.backlash", 0.0235},
-      {"lower_spindle.backlash", 0.0265}, {"upper_spindle.stiffness", 1.15e7},
-      {"bite_time", 0.0537}};
+  const std::map<std::string, double> truth = {{"motor_shaft.damping", 32000.0},
+                                               {"main_coupling.damping", 75000.0},
+                                               {"upper_spindle.damping", 6200.0},
+                                               {"lower_spindle.damping", 3300.0},
+                                               {"main_coupling.backlash", 0.0052},
+                                               {"upper_spindle.backlash", 0.0235},
+                                               {"lower_spindle.backlash", 0.0265},
+                                               {"upper_spindle.stiffness", 1.15e7},
+                                               {"bite_time", 0.0537}};
   for (const auto& p : fit["parameters"]) {
     INFO(p.dump());
     CHECK(std::abs(p["value"].get<double>() - truth.at(p["name"])) <=
@@ -50,16 +53,29 @@ TEST_CASE("identify fits the bundled record and writes JSON, trace and plot") {
   }
   CHECK(fit["correlation"]["matrix"].size() == 13);  // 9 parameters + 2 gains + 2 offsets
   CHECK_THAT(ReadText(dir / "fit.csv"), Contains("upper_spindle.measured,upper_spindle.fitted"));
-  CHECK_THAT(ReadText(dir / "fit.svg"), Contains("<svg"));
+  // The plot lists the fitted parameters with their standard errors, puts the fitted line over
+  // the measured trace and scales the torque axis (the channels peak near 1e6 N*m).
+  const std::string svg = ReadText(dir / "fit.svg");
+  CHECK_THAT(svg, Contains("class=\"notes\""));
+  for (const auto& p : fit["parameters"]) {
+    const std::string name = p["name"];
+    const std::string line =
+        ">" + name + " = " +
+        millkit::ValueWithError(p["value"].get<double>(), p["standard_error"].get<double>());
+    CHECK_THAT(svg, Contains(line));
+  }
+  CHECK_THAT(svg, Contains(">verdict: ok"));
+  CHECK_THAT(svg, Contains("stroke-opacity") && Contains("stroke-width=\"2.20\""));
+  CHECK_THAT(svg, Contains("torque, kN\u00b7m") || Contains("torque, MN\u00b7m"));
+  CHECK_FALSE(std::regex_search(svg, std::regex("[0-9]{8}")));  // no 16-digit numbers anywhere
   CHECK_THAT(result.stdout_text, Contains("upper_spindle.backlash"));
 }
 
 TEST_CASE("identify reports a gap the record cannot tell with a null standard error") {
   ScratchDir dir;
-  const auto result = RunMillkit("identify " + Scene() + " --data " +
-                                 Bundled("mill5_balanced_lower.csv") + " --config " +
-                                 Bundled("mill5_balanced_lower.fit.toml") + " --out '" +
-                                 (dir / "fit.json").string() + "'");
+  const auto result = RunMillkit(
+      "identify " + Scene() + " --data " + Bundled("mill5_balanced_lower.csv") + " --config " +
+      Bundled("mill5_balanced_lower.fit.toml") + " --out '" + (dir / "fit.json").string() + "'");
   INFO(result.stderr_text);
   REQUIRE(result.exit_code == 0);
   const auto fit = nlohmann::json::parse(ReadText(dir / "fit.json"));
@@ -73,17 +89,17 @@ TEST_CASE("identify reports a gap the record cannot tell with a null standard er
 
 TEST_CASE("identify rejects bad input with exit 2 and leaves no output behind") {
   ScratchDir dir;
-  const std::string out = " --out '" + (dir / "fit.json").string() + "' --plot '" +
-                          (dir / "fit.svg").string() + "'";
+  const std::string out =
+      " --out '" + (dir / "fit.json").string() + "' --plot '" + (dir / "fit.svg").string() + "'";
   WriteText(dir / "bad.csv", "time,upper_spindle\n0,1\n0.001,x\n");
-  const auto bad_cell = RunMillkit("identify " + Scene() + " --data '" +
-                                   (dir / "bad.csv").string() + "'" + out);
+  const auto bad_cell =
+      RunMillkit("identify " + Scene() + " --data '" + (dir / "bad.csv").string() + "'" + out);
   CHECK(bad_cell.exit_code == 2);
   CHECK_THAT(bad_cell.stderr_text, Contains("bad.csv") && Contains("line 3"));
   WriteText(dir / "fit.toml", "[[free]]\nname = \"upper_spindle.colour\"\nlower = 0\nupper = 1\n");
-  const auto bad_name = RunMillkit("identify " + Scene() + " --data " +
-                                   Bundled("mill5_two_spindles.csv") + " --config '" +
-                                   (dir / "fit.toml").string() + "'" + out);
+  const auto bad_name =
+      RunMillkit("identify " + Scene() + " --data " + Bundled("mill5_two_spindles.csv") +
+                 " --config '" + (dir / "fit.toml").string() + "'" + out);
   CHECK(bad_name.exit_code == 2);
   CHECK_THAT(bad_name.stderr_text, Contains("fit.toml") && Contains("upper_spindle.colour"));
   CHECK(dir.EntryCount() == 2);  // only the two inputs written above
@@ -94,9 +110,9 @@ TEST_CASE("synthesize writes the bundled record again, to within one ADC step") 
   // moves the quantiser's step (it follows the measured peak) by roundoff and can flip the level
   // of a sample that sits on a step boundary.
   ScratchDir dir;
-  const auto result = RunMillkit("synthesize " + Scene() + " --spec " +
-                                 Bundled("mill5_two_spindles.spec.toml") + " --out '" +
-                                 (dir / "rec.csv").string() + "'");
+  const auto result =
+      RunMillkit("synthesize " + Scene() + " --spec " + Bundled("mill5_two_spindles.spec.toml") +
+                 " --out '" + (dir / "rec.csv").string() + "'");
   INFO(result.stderr_text);
   REQUIRE(result.exit_code == 0);
   const auto made = millkit::identify::LoadOscillogram(dir / "rec.csv");
