@@ -1,5 +1,9 @@
 // `millkit sweep` end to end: outputs, threads, exit codes, no partial files.
+#include <algorithm>
 #include <catch2/catch.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "support/run_cli.h"
 
@@ -65,6 +69,13 @@ TEST_CASE("sweep over one parameter draws a line of Kd per link against it", "[s
   // Two links: two polylines of three points each, the second dashed.
   CHECK(Count(svg, "<polyline") == 2);
   CHECK(Count(svg, "stroke-dasharray=\"7 4\"") == 2);  // its polyline and legend line
+  // The values were given as 9000, 1000, 5000: the line runs left to right, not back and forth.
+  const auto begin = svg.find("points=\"", svg.find("<polyline")) + 8;
+  std::istringstream points(svg.substr(begin, svg.find('"', begin) - begin));
+  std::vector<double> x;
+  for (std::string point; points >> point;) x.push_back(std::stod(point));
+  CHECK(x.size() == 3);
+  CHECK(std::is_sorted(x.begin(), x.end()));
 }
 
 TEST_CASE("sweep output is the same file for 1 and 2 threads", "[sweep][cli]") {
