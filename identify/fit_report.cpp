@@ -1,5 +1,6 @@
 #include "identify/fit_report.h"
 
+#include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
 
@@ -161,29 +162,67 @@ std::string FitTraceCsv(const FitResult& result) {
 
 std::string FitPlotSvg(const FitResult& result, const std::string& title) {
   const bool several = SeveralRecords(result);
+  PlotOptions options;
+  options.title = title;
+  options.panel_width_px = 840.0;
+  options.note_column_px = 410.0;
+  options.panel_height_px = 260.0;
+  const auto& s = result.summary;
+  options.notes.push_back("verdict: " + (s.success ? s.verdict : std::string("failed")) +
+                          ", noise scale " + ShortNumber(s.noise_scale) +
+                          " (standard errors after \u00b1)");
+  for (const auto& p : result.parameters) {
+    std::string line = p.name + " = " +
+                       ValueWithError(p.value, p.identifiable ? p.standard_error : NAN) +
+                       (p.unit == "1" || p.unit.empty() ? "" : " " + p.unit);
+    if (p.at_bound) line += " (at bound)";
+    if (!p.identifiable) line += " (not identifiable)";
+    options.notes.push_back(line);
+  }
   std::vector<PlotPanel> panels;
   for (const auto& c : result.channels) {
     const std::string name = several ? c.record_label + ": " + c.column : c.column;
+    double peak = 0.0;
+    for (const auto* trace : {&c.measured, &c.fitted}) {
+      for (double v : *trace) {
+        if (std::isfinite(v)) peak = std::max(peak, std::abs(v));
+      }
+    }
+    // A channel logged in kN·m or MN·m is drawn in its unit; one in N·m in N·m, kN·m or MN·m by
+    // its magnitude.
+    PlotUnit unit = PlotTorqueUnit(peak);
+    if (c.unit != "N*m") {
+      unit = {1.0, c.unit};
+      unit.unit.replace(unit.unit.find('*'), 1, "\u00b7");  // kN*m -> kN·m, as PlotTorqueUnit
+    }
+    const auto scaled = [&unit](std::vector<double> values) {
+      for (double& v : values) v *= unit.factor;
+      return values;
+    };
+    options.notes.push_back(name + ": gain " + ValueWithError(c.gain, c.gain_se) + ", offset " +
+                            ValueWithError(c.offset * unit.factor, c.offset_se * unit.factor) +
+                            " " + unit.unit);
     PlotPanel torque;
     torque.title = name + " (link " + c.link + ")";
     torque.x_title = "time, s";
-    torque.y_title = "torque, " + c.unit;
-    torque.series.push_back({"measured", c.time_s, c.measured, PlotSeries::Style::kMarkers});
-    torque.series.push_back({"fitted", c.time_s, c.fitted, PlotSeries::Style::kLine});
+    torque.y_title = "torque, " + unit.unit;
+    // The record as a thin light trace, the fit drawn over it: neither hides the other.
+    torque.series.push_back({"measured", c.time_s, scaled(c.measured), PlotSeries::Style::kLine,
+                             PlotSeries::Emphasis::kTrace});
+    torque.series.push_back({"fitted", c.time_s, scaled(c.fitted), PlotSeries::Style::kLine,
+                             PlotSeries::Emphasis::kFit});
     PlotPanel residual;
     residual.title = name + ": residual (fitted - measured), rms " +
-                     std::to_string(c.rms_residual) + " " + c.unit;
+                     ShortNumber(c.rms_residual * unit.factor) + " " + unit.unit + ", noise " +
+                     ShortNumber(c.noise * unit.factor) + " " + unit.unit;
     residual.x_title = "time, s";
-    residual.y_title = "residual, " + c.unit;
+    residual.y_title = "residual, " + unit.unit;
     std::vector<double> r(c.fitted.size());
     for (size_t k = 0; k < r.size(); ++k) r[k] = c.fitted[k] - c.measured[k];
-    residual.series.push_back({"", c.time_s, r, PlotSeries::Style::kLine});
+    residual.series.push_back({"", c.time_s, scaled(r), PlotSeries::Style::kLine});
     panels.push_back(std::move(torque));
     panels.push_back(std::move(residual));
   }
-  PlotOptions options;
-  options.title = title;
-  options.panel_height_px = 260.0;
   return RenderSvgPlot(panels, options);
 }
 

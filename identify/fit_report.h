@@ -25,7 +25,10 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
 // several records a first column `record` (RecordLabels) and the records' rows one after another.
 std::string FitTraceCsv(const FitResult& result);
 
-// Two panels per channel (of each record): measured and fitted torque; residual.
+// Notes above the panels: the verdict, every parameter with its standard error (the digits it
+// supports) and each channel's gain and offset. Two panels per channel (of each record): the
+// measured torque as a thin trace under the fitted line, in N·m, kN·m or MN·m by magnitude; the
+// residual in the same unit.
 std::string FitPlotSvg(const FitResult& result, const std::string& title);
 
 }  // namespace millkit::identify

@@ -185,13 +185,21 @@ std::vector<PlotPanel> CurvePlotPanels(const driveline::Scene& scene,
         broken.y.push_back(c.point.kd_max);
       }
     }
+    // Kd max runs along the largest link's line: a wide translucent band under the dashed link
+    // lines, so both stay visible.
     if (links.size() > 1) {
+      kd_max.emphasis = PlotSeries::Emphasis::kBand;
+      panel.series.push_back(std::move(kd_max));
       for (auto& s : links) panel.series.push_back(std::move(s));
+    } else {
+      panel.series.push_back(std::move(kd_max));
     }
-    panel.series.push_back(std::move(kd_max));  // drawn over the per-link lines it follows
     panel.series.push_back(std::move(broken));
-    panel.series.push_back(
-        {"optimum", {answer.values[v]}, {answer.kd_max}, PlotSeries::Style::kMarkers});
+    panel.series.push_back({"optimum",
+                            {answer.values[v]},
+                            {answer.kd_max},
+                            PlotSeries::Style::kMarkers,
+                            PlotSeries::Emphasis::kFit});
     panels.push_back(std::move(panel));
   }
   return panels;

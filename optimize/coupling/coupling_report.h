@@ -24,8 +24,9 @@ std::string FormatCouplingTable(const driveline::Scene& scene, const CouplingPro
 std::string FormatCurveCsv(const driveline::Scene& scene, const CouplingProblem& problem,
                            const std::vector<CurvePoint>& curve);
 
-// One panel per variable: Kd_max (line), Kd of each counted link (lines), points that break a
-// limit (markers) and the answer (marker).
+// One panel per variable: Kd_max (a wide light band when several links are counted), Kd of each
+// counted link (lines of distinct dashes), points that break a limit (hollow markers) and the
+// answer (a filled marker drawn last).
 std::vector<PlotPanel> CurvePlotPanels(const driveline::Scene& scene,
                                        const CouplingProblem& problem,
                                        const std::vector<CurvePoint>& curve,

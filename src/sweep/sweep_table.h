@@ -1,5 +1,5 @@
-// The outputs of a sweep (issue 5): one CSV row per case, in case order, and one plot panel of Kd
-// against each swept parameter.
+// The outputs of a sweep (issue 5): one CSV row per case, in case order, and plots of Kd
+// (SweepPlotPanels).
 //
 // CSV columns: `case` (0-based), one column per swept parameter (its name), `status` (ok |
 // failed), `events`, then per reported link `kd.<link>` and `peak_Nm.<link>`, and `message` last
@@ -19,7 +19,11 @@ namespace millkit::sweep {
 std::string FormatSweepCsv(const driveline::Scene& scene, const SweepConfig& config,
                            const CaseList& cases, const std::vector<CaseResult>& results);
 
-// One panel per swept parameter: Kd of each reported link (markers) against the parameter.
+// Plots of Kd. A grid over two parameters: one heat map per reported link (the first parameter
+// across, the second up), all links on one colour scale, failed cases and undefined Kd grey. A
+// grid over one parameter: a line with markers per link against it. Otherwise (Latin hypercube,
+// grids over three or more parameters): one panel per parameter, each link's Kd of every case
+// against it (markers).
 std::vector<PlotPanel> SweepPlotPanels(const driveline::Scene& scene, const SweepConfig& config,
                                        const CaseList& cases,
                                        const std::vector<CaseResult>& results);

@@ -54,7 +54,12 @@ TEST_CASE("coupling writes the answer, the curve and the plot, and the answer me
              StartsWith("variable,value,status,feasible,lowest_frequency_Hz,"
                         "twist_rad.upper_spindle,twist_rad.lower_spindle,kd_max,"
                         "kd.upper_spindle,kd.lower_spindle,message\n"));
-  CHECK_THAT(ReadText(dir / "curve.svg"), Contains("Kd vs upper_spindle.stiffness"));
+  const std::string svg = ReadText(dir / "curve.svg");
+  CHECK_THAT(svg, Contains("Kd vs upper_spindle.stiffness"));
+  // Two counted links: Kd max is a wide light band under them (it runs along the larger one),
+  // the second link's line is dashed, so neither curve hides another.
+  CHECK_THAT(svg, Contains("stroke-width=\"7.00\" stroke-opacity=\"0.30\""));
+  CHECK_THAT(svg, Contains("stroke-dasharray=\"7 4\""));
   CHECK_THAT(run.stdout_text, Contains("optimum") && Contains("scene as given"));
 }
 

@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 
 #include "identify/fit_fixture.h"
+#include "identify/fit_report.h"
 #include "io/input_error.h"
 #include "support/run_cli.h"
 
@@ -179,4 +180,8 @@ TEST_CASE("a record in kN*m fits to the N*m record's values and reports in kN*m"
     CHECK(b.channels[c].rms_residual == Approx(a.channels[c].rms_residual / 1e3).epsilon(1e-6));
     CHECK(b.channels[c].measured[7] == in_kNm.values[c][7]);
   }
+  // The plot draws each channel in its own unit.
+  const std::string svg = FitPlotSvg(b, "kN*m record");
+  CHECK_THAT(svg, Contains("torque, kN\u00b7m") && Contains("residual, kN\u00b7m"));
+  CHECK_THAT(svg, !Contains("torque, N\u00b7m") && !Contains("torque, MN\u00b7m"));
 }

@@ -2,6 +2,7 @@
 // files.
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
+#include <regex>
 
 #include <algorithm>
 #include <vector>
@@ -9,6 +10,7 @@
 #include "driveline/scene.h"
 #include "identify/oscillogram.h"
 #include "identify/record_generator.h"
+#include "io/toml_section.h"
 #include "support/run_cli.h"
 
 using Catch::Matchers::Contains;
@@ -56,7 +58,21 @@ TEST_CASE("identify fits the bundled record and writes JSON, trace and plot") {
   }
   CHECK(fit["correlation"]["matrix"].size() == 13);  // 9 parameters + 2 gains + 2 offsets
   CHECK_THAT(ReadText(dir / "fit.csv"), Contains("upper_spindle.measured,upper_spindle.fitted"));
-  CHECK_THAT(ReadText(dir / "fit.svg"), Contains("<svg"));
+  // The plot lists the fitted parameters with their standard errors, puts the fitted line over
+  // the measured trace and scales the torque axis (the channels peak near 1e6 N*m).
+  const std::string svg = ReadText(dir / "fit.svg");
+  CHECK_THAT(svg, Contains("class=\"notes\""));
+  for (const auto& p : fit["parameters"]) {
+    const std::string name = p["name"];
+    const std::string line =
+        ">" + name + " = " +
+        millkit::ValueWithError(p["value"].get<double>(), p["standard_error"].get<double>());
+    CHECK_THAT(svg, Contains(line));
+  }
+  CHECK_THAT(svg, Contains(">verdict: ok"));
+  CHECK_THAT(svg, Contains("stroke-opacity") && Contains("stroke-width=\"2.20\""));
+  CHECK_THAT(svg, Contains("torque, kN\u00b7m") || Contains("torque, MN\u00b7m"));
+  CHECK_FALSE(std::regex_search(svg, std::regex("[0-9]{8}")));  // no 16-digit numbers anywhere
   CHECK_THAT(result.stdout_text, Contains("upper_spindle.backlash"));
 }
 

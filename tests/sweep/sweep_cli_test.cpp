@@ -1,5 +1,9 @@
 // `millkit sweep` end to end: outputs, threads, exit codes, no partial files.
+#include <algorithm>
 #include <catch2/catch.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "support/run_cli.h"
 
@@ -16,9 +20,16 @@ const std::string kConfig =
 
 std::string Mill5() { return "'" + SourcePath("datasets/scenes/mill5_bite.toml") + "'"; }
 
+int Count(const std::string& text, const std::string& what) {
+  int n = 0;
+  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
 }  // namespace
 
-TEST_CASE("sweep writes one row per case and a plot panel per parameter", "[sweep][cli]") {
+TEST_CASE("sweep writes one row per case and a heat map of Kd per link for a two-parameter grid",
+          "[sweep][cli]") {
   ScratchDir dir;
   WriteText(dir / "sweep.toml", kConfig);
   const auto run =
@@ -33,8 +44,38 @@ TEST_CASE("sweep writes one row per case and a plot panel per parameter", "[swee
   CHECK_THAT(csv, Contains("\n5,9000,0.03,ok,"));
   const std::string svg = ReadText(dir / "kd.svg");
   CHECK_THAT(svg,
-             Contains("Kd vs upper_spindle.damping") && Contains("Kd vs lower_spindle.backlash"));
+             Contains(">Kd of upper_spindle</text>") && Contains(">Kd of lower_spindle</text>"));
+  CHECK(Count(svg, "class=\"cell\"") == 2 * 6);  // 3 dampings × 2 backlashes per link
+  CHECK(Count(svg, "class=\"colour-bar\"") == 2);
+  CHECK_THAT(svg, Contains(">upper_spindle.damping (N*m*s/rad)</text>") &&
+                      Contains(">lower_spindle.backlash (rad)</text>"));
+  CHECK_THAT(svg, Contains(">5000</text>"));  // the middle damping level as a tick
+  CHECK(Count(svg, "Kd vs") == 0);            // no marginal scatters
   CHECK_THAT(run.stderr_text, Contains("6 cases (0 failed)"));
+}
+
+TEST_CASE("sweep over one parameter draws a line of Kd per link against it", "[sweep][cli]") {
+  ScratchDir dir;
+  WriteText(dir / "sweep.toml",
+            "[sweep]\nmethod = \"grid\"\nlinks = [\"upper_spindle\", \"lower_spindle\"]\n"
+            "[[parameter]]\nname = \"upper_spindle.damping\"\nvalues = [9000, 1000, 5000]\n");
+  const auto run =
+      RunMillkit("sweep " + Mill5() + " --config '" + (dir / "sweep.toml").string() + "' --out '" +
+                 (dir / "cases.csv").string() + "' --plot '" + (dir / "kd.svg").string() + "'");
+  REQUIRE(run.exit_code == 0);
+  const std::string svg = ReadText(dir / "kd.svg");
+  CHECK_THAT(svg, Contains(">Kd vs upper_spindle.damping</text>"));
+  CHECK(Count(svg, "class=\"cell\"") == 0);
+  // Two links: two polylines of three points each, the second dashed.
+  CHECK(Count(svg, "<polyline") == 2);
+  CHECK(Count(svg, "stroke-dasharray=\"7 4\"") == 2);  // its polyline and legend line
+  // The values were given as 9000, 1000, 5000: the line runs left to right, not back and forth.
+  const auto begin = svg.find("points=\"", svg.find("<polyline")) + 8;
+  std::istringstream points(svg.substr(begin, svg.find('"', begin) - begin));
+  std::vector<double> x;
+  for (std::string point; points >> point;) x.push_back(std::stod(point));
+  CHECK(x.size() == 3);
+  CHECK(std::is_sorted(x.begin(), x.end()));
 }
 
 TEST_CASE("sweep output is the same file for 1 and 2 threads", "[sweep][cli]") {
