@@ -1,13 +1,13 @@
 // `millkit identify` and `millkit synthesize` on the command line: outputs, exit codes, no partial
 // files.
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 #include <regex>
-
-#include <algorithm>
 #include <vector>
 
 #include "driveline/scene.h"
+#include "identify/fit_fixture.h"
 #include "identify/oscillogram.h"
 #include "identify/record_generator.h"
 #include "io/toml_section.h"
@@ -42,15 +42,7 @@ TEST_CASE("identify fits the bundled record and writes JSON, trace and plot") {
   CHECK(fit["parameters"].size() == 9);
   CHECK(fit["not_identifiable"].empty());
   // The truth of datasets/records/mill5_two_spindles.spec.toml within 4 standard errors.
-  const std::map<std::string, double> truth = {{"motor_shaft.damping", 32000.0},
-                                               {"main_coupling.damping", 75000.0},
-                                               {"upper_spindle.damping", 6200.0},
-                                               {"lower_spindle.damping", 3300.0},
-                                               {"main_coupling.backlash", 0.0052},
-                                               {"upper_spindle.backlash", 0.0235},
-                                               {"lower_spindle.backlash", 0.0265},
-                                               {"upper_spindle.stiffness", 1.15e7},
-                                               {"bite_time", 0.0537}};
+  const auto& truth = millkit::identify::testing::Mill5Truth();
   for (const auto& p : fit["parameters"]) {
     INFO(p.dump());
     CHECK(std::abs(p["value"].get<double>() - truth.at(p["name"])) <=
