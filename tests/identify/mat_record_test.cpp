@@ -5,8 +5,10 @@
 
 #include <matio.h>
 
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -100,6 +102,49 @@ TEST_CASE("MAT v5 and v7.3 records read the same record as the CSV and fit to th
   const FitConfig config = Mill5Config(csv, &scene);
   CheckSameFit(Fit(scene, csv, config, FitOptions{}),
                Fit(scene, LoadOscillogram(dir / "rec_v7.3.mat"), config, FitOptions{}));
+}
+
+TEST_CASE(
+    "a logger CSV with BOM, semicolons, decimal commas and a kN*m units row fits like the "
+    "plain CSV") {
+  const Oscillogram csv = Mill5Record(0.01, 12, 0.0, 3);
+  // Values in kN*m, 17 significant digits, decimal comma; a coil-ID text column; CRLF.
+  std::string text = "\xEF\xBB\xBF\"Time [s]\";coil";
+  for (const auto& name : csv.channels) {
+    text += ";\"";
+    text += name;
+    text += '"';
+  }
+  text += "\r\ns;";
+  for (size_t c = 0; c < csv.channels.size(); ++c) text += ";kN*m";
+  text += "\r\n";
+  const auto number = [](double v) {
+    char cell[64];
+    std::snprintf(cell, sizeof(cell), "%.17g", v);
+    std::string s = cell;
+    std::replace(s.begin(), s.end(), '.', ',');
+    return s;
+  };
+  for (size_t k = 0; k < csv.time_s.size(); ++k) {
+    text += number(csv.time_s[k]);
+    text += ";C-4711";
+    for (const auto& column : csv.values) {
+      text += ';';
+      text += number(column[k] / 1e3);
+    }
+    text += "\r\n";
+  }
+  const Oscillogram logger = ParseOscillogram(text, "logger.csv");
+  REQUIRE(logger.time_s == csv.time_s);
+  auto scene = Mill5Scene();
+  const FitConfig config = Mill5Config(csv, &scene);
+  auto logger_scene = Mill5Scene();
+  const FitConfig logger_config = Mill5Config(logger, &logger_scene);  // unit from the units row
+  for (const auto& c : logger_config.channels) CHECK(c.unit.name == "kN*m");
+  // v / 1e3 printed with 17 digits and read back times 1e3 is v within an ulp or two: the fits
+  // agree within their convergence tolerance.
+  CheckSameFit(Fit(scene, csv, config, FitOptions{}),
+               Fit(logger_scene, logger, logger_config, FitOptions{}), 1e-7);
 }
 
 TEST_CASE("a MAT record inside a struct, with other variables skipped with a note") {
