@@ -1,4 +1,4 @@
-#include "identify/comtrade.h"
+#include "millkit/identify/comtrade.h"
 
 #include <algorithm>
 #include <cctype>
@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::identify {
 namespace {

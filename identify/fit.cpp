@@ -1,4 +1,4 @@
-#include "identify/fit.h"
+#include "millkit/identify/fit.h"
 
 #include <algorithm>
 #include <chrono>
@@ -7,16 +7,16 @@
 #include <limits>
 #include <sstream>
 
-#include "driveline/model.h"
-#include "driveline/simulation.h"
 #include "identify/fit_model.h"
 #include "identify/instrument_filter.h"
 #include "identify/multistart.h"
 #include "identify/record_noise.h"
 #include "identify/uncertainty.h"
 #include "identify/verdict.h"
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/driveline/model.h"
+#include "millkit/driveline/simulation.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::identify {
 

@@ -1,10 +1,10 @@
-#include "identify/fit_config.h"
+#include "millkit/identify/fit_config.h"
 
 #include <algorithm>
 #include <cmath>
 
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::identify {
 namespace {

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <limits>
 
-#include "identify/fit.h"
+#include "millkit/identify/fit.h"
 
 namespace millkit::identify {
 

@@ -22,10 +22,10 @@
 #include <string>
 #include <vector>
 
-#include "driveline/scene.h"
-#include "identify/fit_config.h"
-#include "identify/oscillogram.h"
 #include "identify/parameter_map.h"
+#include "millkit/driveline/scene.h"
+#include "millkit/identify/fit_config.h"
+#include "millkit/identify/oscillogram.h"
 
 namespace millkit::identify {
 

@@ -1,11 +1,11 @@
-#include "identify/fit_report.h"
+#include "millkit/identify/fit_report.h"
 
 #include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
 
-#include "io/svg_plot.h"
 #include "io/toml_section.h"
+#include "millkit/io/svg_plot.h"
 
 namespace millkit::identify {
 namespace {

@@ -1,4 +1,4 @@
-#include "identify/mat_record.h"
+#include "millkit/identify/mat_record.h"
 
 #include <matio.h>
 
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::identify {
 namespace {

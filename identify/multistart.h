@@ -8,10 +8,10 @@
 #include <limits>
 #include <vector>
 
-#include "identify/fit.h"
 #include "identify/fit_model.h"
 #include "identify/record_noise.h"
 #include "identify/uncertainty.h"
+#include "millkit/identify/fit.h"
 
 namespace millkit::identify {
 

@@ -1,13 +1,13 @@
-#include "identify/oscillogram.h"
+#include "millkit/identify/oscillogram.h"
 
 #include <algorithm>
 #include <cctype>
 
-#include "identify/comtrade.h"
-#include "identify/mat_record.h"
-#include "io/csv.h"
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/identify/comtrade.h"
+#include "millkit/identify/mat_record.h"
+#include "millkit/io/csv.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::identify {
 namespace {

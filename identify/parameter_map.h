@@ -15,7 +15,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "identify/fit_config.h"
+#include "millkit/identify/fit_config.h"
 
 namespace millkit::identify {
 

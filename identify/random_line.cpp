@@ -8,11 +8,11 @@
 #include <stdexcept>
 #include <utility>
 
-#include "driveline/model.h"
-#include "driveline/natural_frequencies.h"
-#include "driveline/scene_parameter.h"
-#include "identify/record_generator.h"
-#include "io/input_error.h"
+#include "millkit/driveline/model.h"
+#include "millkit/driveline/natural_frequencies.h"
+#include "millkit/driveline/scene_parameter.h"
+#include "millkit/identify/record_generator.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::identify {
 

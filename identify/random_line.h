@@ -28,9 +28,9 @@
 #include <string>
 #include <vector>
 
-#include "driveline/scene.h"
-#include "identify/fit_config.h"
-#include "identify/oscillogram.h"
+#include "millkit/driveline/scene.h"
+#include "millkit/identify/fit_config.h"
+#include "millkit/identify/oscillogram.h"
 
 namespace millkit::identify {
 
@@ -53,7 +53,7 @@ struct RandomLineCase {
 RandomLineCase MakeRandomLineCase(unsigned long seed);
 
 // Elastic natural frequencies (Hz, ascending) of the undamped line with every gap closed
-// (driveline/natural_frequencies.h without the rigid-body mode).
+// (millkit/driveline/natural_frequencies.h without the rigid-body mode).
 std::vector<double> ElasticModesHz(const driveline::Scene& scene);
 
 }  // namespace millkit::identify

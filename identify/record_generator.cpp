@@ -1,14 +1,14 @@
-#include "identify/record_generator.h"
+#include "millkit/identify/record_generator.h"
 
 #include <algorithm>
 #include <cmath>
 
-#include "driveline/model.h"
-#include "driveline/scene_parameter.h"
-#include "driveline/simulation.h"
 #include "identify/instrument_filter.h"
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/driveline/model.h"
+#include "millkit/driveline/scene_parameter.h"
+#include "millkit/driveline/simulation.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::identify {
 

@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "identify/oscillogram.h"
+#include "millkit/identify/oscillogram.h"
 
 namespace millkit::identify {
 

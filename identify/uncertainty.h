@@ -4,8 +4,8 @@
 #include <Eigen/Dense>
 #include <vector>
 
-#include "identify/fit.h"
 #include "identify/fit_model.h"
+#include "millkit/identify/fit.h"
 
 namespace millkit::identify {
 

@@ -1,16 +1,18 @@
-// The verdict of a finished fit (identify/ internal; the rules are in identify/fit.h).
+// The verdict of a finished fit (identify/ internal; the rules are in
+// include/millkit/identify/fit.h).
 #pragma once
 
 #include <vector>
 
-#include "identify/fit.h"
 #include "identify/fit_model.h"
 #include "identify/multistart.h"
 #include "identify/record_noise.h"
+#include "millkit/identify/fit.h"
 
 namespace millkit::identify {
 
-// A channel's residual against the record's own noise (the misfit rules in identify/fit.h).
+// A channel's residual against the record's own noise (the misfit rules in
+// include/millkit/identify/fit.h).
 struct ResidualTest {
   double variance_ratio = 0.0;  // residual variance / noise variance
   double variance_z = 0.0;

@@ -18,16 +18,16 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <limits>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include "driveline/simulation.h"
-#include "io/csv.h"
+#include "millkit/driveline/simulation.h"
+#include "millkit/io/csv.h"
 
 using namespace millkit::driveline;
 
@@ -106,8 +106,7 @@ int main(int argc, char** argv) {
   }
   const Model model(LoadScene(scene_path));
   std::printf("scene %s: %zu masses, %zu links, %d samples\n", scene_path.c_str(),
-              model.scene().masses.size(), model.scene().links.size(),
-              model.scene().SampleCount());
+              model.scene().masses.size(), model.scene().links.size(), model.scene().SampleCount());
 
   SimulationOptions tight;
   tight.solver = SolverKind::kCvode;
@@ -115,13 +114,13 @@ int main(int argc, char** argv) {
   const Timed reference = Run(model, tight, 1.0);
   SimulationOptions exact_options;
   const Timed exact = Run(model, exact_options, 2.0);
-  const double cross =
-      RelativeError(exact.result.link_torque_Nm, reference.result.link_torque_Nm);
+  const double cross = RelativeError(exact.result.link_torque_Nm, reference.result.link_torque_Nm);
   std::printf("reference: CVODE rtol 1e-14; the exact solver differs from it by %.2e of peak\n\n",
               cross);
 
-  std::printf("| solver | tolerance | events | steps | wall time ms (min of N) | N | "
-              "max error / peak |\n");
+  std::printf(
+      "| solver | tolerance | events | steps | wall time ms (min of N) | N | "
+      "max error / peak |\n");
   std::printf("|---|---|---|---|---|---|---|\n");
   std::printf("| exact | - | %ld | %ld | %.3f | %d | %.1e (own estimate %.1e) |\n",
               exact.result.summary.events, exact.result.summary.steps, exact.seconds * 1e3,
@@ -138,8 +137,9 @@ int main(int argc, char** argv) {
                                                              reference.result.link_torque_Nm))
                                     .c_str());
   }
-  std::printf("\nexact solver vs CVODE rtol 1e-14 (the CVODE run nearest its error): %.0fx faster\n",
-              reference.seconds / exact.seconds);
+  std::printf(
+      "\nexact solver vs CVODE rtol 1e-14 (the CVODE run nearest its error): %.0fx faster\n",
+      reference.seconds / exact.seconds);
 
   // The Kd-only path: peaks and Kd, no samples kept, no error estimate.
   SimulationOptions kd_options;
@@ -173,7 +173,8 @@ int main(int argc, char** argv) {
                               (std::isnan(kd_only[l].kd) && std::isnan(kd_full[l].kd)));
   }
   std::printf("\nKd-only path (keep_samples = false, estimate_error = false):\n\n");
-  std::printf("| run | wall time ms (min of N) | N | simulations/s | max Kd error vs reference |\n");
+  std::printf(
+      "| run | wall time ms (min of N) | N | simulations/s | max Kd error vs reference |\n");
   std::printf("|---|---|---|---|---|\n");
   std::printf("| one Model, repeated | %.3f | %d | %.0f | %.1e |\n", kd_run.seconds * 1e3,
               kd_run.runs, 1.0 / kd_run.seconds, KdError(kd_only, kd_reference));
@@ -197,24 +198,26 @@ int main(int argc, char** argv) {
     const Timed run = Run(reduced, exact_options, 1.0);
     const SampleMatrix& fast = run.result.link_torque_Nm;
     SampleMatrix on_grid(fast.rows(), fast.cols());
-    for (int k = 0; k < fast.rows(); ++k) on_grid.row(k) = full_run.result.link_torque_Nm.row(stride * k);
+    for (int k = 0; k < fast.rows(); ++k)
+      on_grid.row(k) = full_run.result.link_torque_Nm.row(stride * k);
     const double peak = on_grid.cwiseAbs().maxCoeff();
     double kept = 0.0, merged = 0.0;
     for (int l = 0; l < fast.cols(); ++l) {
       const double e = (fast.col(l) - on_grid.col(l)).cwiseAbs().maxCoeff() / peak;
-      (reduced.FlexibleIndexOf(l) < 0 ? merged : kept) = std::max(
-          reduced.FlexibleIndexOf(l) < 0 ? merged : kept, e);
+      (reduced.FlexibleIndexOf(l) < 0 ? merged : kept) =
+          std::max(reduced.FlexibleIndexOf(l) < 0 ? merged : kept, e);
     }
     // Peak torque per link (what Kd is made of), relative to the full model's.
     double peak_error = 0.0;
     for (int l = 0; l < fast.cols(); ++l) {
       const double full_peak = full_run.result.link_torque_Nm.col(l).cwiseAbs().maxCoeff();
-      peak_error = std::max(peak_error,
-                            std::abs(fast.col(l).cwiseAbs().maxCoeff() - full_peak) / full_peak);
+      peak_error =
+          std::max(peak_error, std::abs(fast.col(l).cwiseAbs().maxCoeff() - full_peak) / full_peak);
     }
     std::printf("\nband-limited reduction on %s:\n\n", band_scene_path.c_str());
-    std::printf("| model | samples | events | wall time ms (min of N) | max error / peak, elastic "
-                "links | merged link | peak torque per link |\n|---|---|---|---|---|---|---|\n");
+    std::printf(
+        "| model | samples | events | wall time ms (min of N) | max error / peak, elastic "
+        "links | merged link | peak torque per link |\n|---|---|---|---|---|---|---|\n");
     std::printf("| full, %.0f Hz | %d | %ld | %.3f | reference | reference | reference |\n",
                 full.scene().sample_rate_Hz, full.scene().SampleCount(),
                 full_run.result.summary.events, full_run.seconds * 1e3);

@@ -23,7 +23,7 @@
 #include <vector>
 
 #include "driveline/hard_scenes.h"
-#include "driveline/simulation.h"
+#include "millkit/driveline/simulation.h"
 
 using namespace millkit::driveline;
 

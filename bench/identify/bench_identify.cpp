@@ -14,6 +14,8 @@
 //  3. SciPy (least_squares over solve_ivp) on the first noisy record, through
 //     bench/identify/scipy_identify.py, when /usr/bin/python3 has scipy.
 // Exits non-zero when a fit from the truth fails to converge (a bug, not a slowness).
+#include <glog/logging.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -25,13 +27,11 @@
 #include <string>
 #include <vector>
 
-#include "driveline/scene_parameter.h"
-#include "identify/fit.h"
-#include "identify/fit_config.h"
-#include "identify/record_generator.h"
-#include <glog/logging.h>
-
-#include "io/atomic_file.h"
+#include "millkit/driveline/scene_parameter.h"
+#include "millkit/identify/fit.h"
+#include "millkit/identify/fit_config.h"
+#include "millkit/identify/record_generator.h"
+#include "millkit/io/atomic_file.h"
 
 using namespace millkit;
 using namespace millkit::identify;
@@ -100,15 +100,16 @@ int main(int argc, char** argv) {
     // fit's units is σ/g.
     noise.push_back(kNoise * peak / clean_spec.channels[c].gain / clean_spec.channels[c].gain);
   }
-  std::vector<double> bound =
-      CramerRaoBound(setup.truth, clean, clean_config, noise, FitOptions{});
+  std::vector<double> bound = CramerRaoBound(setup.truth, clean, clean_config, noise, FitOptions{});
   std::vector<double> truth;
   for (const auto& free : clean_config.free) truth.push_back(free.parameter.Get(setup.truth));
 
-  std::printf("## Identification: five-mass bite, 2 channels at 2 kHz, %zu parameters + 4 nuisance\n\n",
-              clean_config.free.size());
-  std::printf("| derivatives | fits | converged | median wall s | median simulations | "
-              "worst RMSE / CRLB, all fits | the same, converged fits |\n|---|---|---|---|---|---|---|\n");
+  std::printf(
+      "## Identification: five-mass bite, 2 channels at 2 kHz, %zu parameters + 4 nuisance\n\n",
+      clean_config.free.size());
+  std::printf(
+      "| derivatives | fits | converged | median wall s | median simulations | "
+      "worst RMSE / CRLB, all fits | the same, converged fits |\n|---|---|---|---|---|---|---|\n");
   Oscillogram first_noisy;
   std::vector<double> forward_rmse(truth.size(), 0.0);
   for (const bool central : {false, true}) {
@@ -173,13 +174,14 @@ int main(int argc, char** argv) {
                     1.96 * ratio_max / std::sqrt(2.0 * std::max(count, 1)), name.c_str());
       return std::string(text);
     };
-    std::printf("| %s | %d | %d | %.2f | %ld | %s | %s |\n", central ? "central" : "forward",
-                seeds, converged, walls[walls.size() / 2], sims[sims.size() / 2],
+    std::printf("| %s | %d | %d | %.2f | %ld | %s | %s |\n", central ? "central" : "forward", seeds,
+                converged, walls[walls.size() / 2], sims[sims.size() / 2],
                 worst(sum_sq, seeds).c_str(), worst(sum_sq_converged, converged).c_str());
     std::fflush(stdout);
   }
-  std::printf("\nCramér–Rao bound at the truth (1 %% noise) and the forward-difference fits' "
-              "RMSE:\n\n| parameter | truth | CRLB | RMSE / CRLB |\n|---|---|---|---|\n");
+  std::printf(
+      "\nCramér–Rao bound at the truth (1 %% noise) and the forward-difference fits' "
+      "RMSE:\n\n| parameter | truth | CRLB | RMSE / CRLB |\n|---|---|---|---|\n");
   for (size_t i = 0; i < truth.size(); ++i) {
     std::printf("| %s | %.6g | %.3g | %.2f |\n", clean_config.free[i].parameter.name.c_str(),
                 truth[i], bound[i], forward_rmse[i] / bound[i]);
@@ -213,9 +215,10 @@ int main(int argc, char** argv) {
     recovered += ok ? 1 : 0;
   }
   std::sort(walls.begin(), walls.end());
-  std::printf("\n±50 %% starts, noise-free record, no scan: %d of %d recover every parameter to "
-              "1e-6 (median %.2f s per fit)\n",
-              recovered, random_starts, walls.empty() ? 0.0 : walls[walls.size() / 2]);
+  std::printf(
+      "\n±50 %% starts, noise-free record, no scan: %d of %d recover every parameter to "
+      "1e-6 (median %.2f s per fit)\n",
+      recovered, random_starts, walls.empty() ? 0.0 : walls[walls.size() / 2]);
   std::fflush(stdout);
 
   // SciPy on the first noisy record.
@@ -223,10 +226,11 @@ int main(int argc, char** argv) {
   std::filesystem::create_directories(dir);
   WriteFileAtomically(dir / "record.csv", FormatOscillogram(first_noisy));
   const std::string script = kSource + "/bench/identify/scipy_identify.py";
-  const std::string command = "/usr/bin/python3 -c 'import scipy' 2>/dev/null && /usr/bin/python3 '" +
-                              script + "' '" + kSource + "/datasets/scenes/mill5_bite.toml' '" +
-                              (dir / "record.csv").string() + "'";
-  std::printf("\nSciPy least_squares over solve_ivp, same record, same start (nominal) and bounds:\n\n");
+  const std::string command =
+      "/usr/bin/python3 -c 'import scipy' 2>/dev/null && /usr/bin/python3 '" + script + "' '" +
+      kSource + "/datasets/scenes/mill5_bite.toml' '" + (dir / "record.csv").string() + "'";
+  std::printf(
+      "\nSciPy least_squares over solve_ivp, same record, same start (nominal) and bounds:\n\n");
   std::fflush(stdout);
   if (std::system(command.c_str()) != 0) std::printf("(SciPy not available or failed)\n");
   return status;

@@ -29,9 +29,9 @@
 #include <string>
 #include <vector>
 
-#include "identify/fit.h"
-#include "identify/fit_config.h"
 #include "identify/random_line.h"
+#include "millkit/identify/fit.h"
+#include "millkit/identify/fit_config.h"
 
 using namespace millkit;
 using namespace millkit::identify;

@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "leveller/linkage.h"
-#include "optimize/leveller/nlopt_inverse.h"
+#include "millkit/leveller/linkage.h"
+#include "millkit/optimize/leveller/nlopt_inverse.h"
 
 namespace {
 

@@ -23,11 +23,11 @@
 #include <string>
 #include <vector>
 
-#include "optimize/coupling/coupling_config.h"
-#include "sweep/mpi_runner.h"
-#include "sweep/sweep_config.h"
-#include "sweep/sweep_runner.h"
-#include "sweep/sweep_table.h"
+#include "millkit/optimize/coupling/coupling_config.h"
+#include "millkit/sweep/mpi_runner.h"
+#include "millkit/sweep/sweep_config.h"
+#include "millkit/sweep/sweep_runner.h"
+#include "millkit/sweep/sweep_table.h"
 
 using namespace millkit;
 using Clock = std::chrono::steady_clock;

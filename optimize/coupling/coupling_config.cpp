@@ -1,11 +1,11 @@
-#include "optimize/coupling/coupling_config.h"
+#include "millkit/optimize/coupling/coupling_config.h"
 
 #include <cmath>
 #include <set>
 
-#include "driveline/model.h"
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/driveline/model.h"
+#include "millkit/io/input_error.h"
 #include "sweep/study_input.h"
 
 namespace millkit::coupling {

@@ -1,4 +1,4 @@
-#include "optimize/coupling/coupling_optimizer.h"
+#include "millkit/optimize/coupling/coupling_optimizer.h"
 
 #include <algorithm>
 #include <chrono>
@@ -7,10 +7,10 @@
 #include <exception>
 #include <limits>
 
-#include "driveline/natural_frequencies.h"
-#include "io/input_error.h"
 #include "io/toml_section.h"
-#include "sweep/sweep_runner.h"
+#include "millkit/driveline/natural_frequencies.h"
+#include "millkit/io/input_error.h"
+#include "millkit/sweep/sweep_runner.h"
 
 namespace millkit::coupling {
 namespace {

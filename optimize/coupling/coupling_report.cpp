@@ -1,11 +1,11 @@
-#include "optimize/coupling/coupling_report.h"
+#include "millkit/optimize/coupling/coupling_report.h"
 
 #include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
 #include "io/toml_section.h"
-#include "sweep/sweep_table.h"
+#include "millkit/sweep/sweep_table.h"
 
 namespace millkit::coupling {
 namespace {

@@ -1,4 +1,4 @@
-#include "optimize/leveller/nlopt_inverse.h"
+#include "millkit/optimize/leveller/nlopt_inverse.h"
 
 #include <ceres/jet.h>
 
@@ -10,8 +10,8 @@
 #include <numbers>
 #include <vector>
 
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::leveller {
 namespace {

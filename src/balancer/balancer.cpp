@@ -1,4 +1,4 @@
-#include "balancer/balancer.h"
+#include "millkit/balancer/balancer.h"
 
 namespace millkit::balancer {
 

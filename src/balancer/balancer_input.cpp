@@ -1,13 +1,13 @@
-#include "balancer/balancer_input.h"
+#include "millkit/balancer/balancer_input.h"
 
 #include <cmath>
 #include <functional>
 #include <map>
 #include <span>
 
-#include "balancer/roller_support.h"
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/balancer/roller_support.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::balancer {
 namespace {

@@ -1,4 +1,4 @@
-#include "balancer/cardan_cross.h"
+#include "millkit/balancer/cardan_cross.h"
 
 #include <cmath>
 #include <stdexcept>

@@ -1,4 +1,4 @@
-#include "balancer/idle_gap_rule.h"
+#include "millkit/balancer/idle_gap_rule.h"
 
 #include <cmath>
 #include <stdexcept>

@@ -1,4 +1,4 @@
-#include "balancer/roller_support.h"
+#include "millkit/balancer/roller_support.h"
 
 #include <cmath>
 #include <numbers>

@@ -13,12 +13,12 @@
 #include <string>
 #include <vector>
 
-#include "balancer/balancer.h"
 #include "cli/commands.h"
-#include "io/atomic_file.h"
-#include "io/input_error.h"
-#include "io/output_files.h"
 #include "io/toml_section.h"
+#include "millkit/balancer/balancer.h"
+#include "millkit/io/atomic_file.h"
+#include "millkit/io/input_error.h"
+#include "millkit/io/output_files.h"
 
 namespace millkit::cli {
 namespace {

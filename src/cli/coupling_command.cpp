@@ -1,17 +1,17 @@
 // millkit coupling SCENE.toml --config COUPLING.toml --out result.json [--curve curve.csv]
 //                  [--plot curve.svg] [--threads N]
 // Coupling stiffness (and damping) optimisation with NLopt (issue 5; docs/coupling.md). The
-// configuration keys are documented in optimize/coupling/coupling_config.h.
+// configuration keys are documented in include/millkit/optimize/coupling/coupling_config.h.
 #include <iostream>
 #include <memory>
 
 #include "cli/commands.h"
-#include "io/atomic_file.h"
-#include "io/input_error.h"
-#include "io/output_files.h"
-#include "io/svg_plot.h"
-#include "optimize/coupling/coupling_config.h"
-#include "optimize/coupling/coupling_report.h"
+#include "millkit/io/atomic_file.h"
+#include "millkit/io/input_error.h"
+#include "millkit/io/output_files.h"
+#include "millkit/io/svg_plot.h"
+#include "millkit/optimize/coupling/coupling_config.h"
+#include "millkit/optimize/coupling/coupling_report.h"
 
 namespace millkit::cli {
 namespace {

@@ -11,17 +11,17 @@
 #include <vector>
 
 #include "cli/commands.h"
-#include "driveline/scene.h"
-#include "identify/fit.h"
-#include "identify/fit_config.h"
-#include "identify/fit_report.h"
-#include "identify/oscillogram.h"
-#include "identify/record_generator.h"
-#include "io/atomic_file.h"
-#include "io/input_error.h"
-#include "io/output_files.h"
-#include "io/progress_line.h"
 #include "io/toml_section.h"
+#include "millkit/driveline/scene.h"
+#include "millkit/identify/fit.h"
+#include "millkit/identify/fit_config.h"
+#include "millkit/identify/fit_report.h"
+#include "millkit/identify/oscillogram.h"
+#include "millkit/identify/record_generator.h"
+#include "millkit/io/atomic_file.h"
+#include "millkit/io/input_error.h"
+#include "millkit/io/output_files.h"
+#include "millkit/io/progress_line.h"
 
 namespace millkit::cli {
 namespace {

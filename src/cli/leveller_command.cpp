@@ -11,16 +11,16 @@
 #include <vector>
 
 #include "cli/commands.h"
-#include "io/atomic_file.h"
-#include "io/csv.h"
-#include "io/input_error.h"
-#include "io/output_files.h"
 #include "io/toml_section.h"
-#include "leveller/leveller_config.h"
-#include "leveller/linkage.h"
-#include "leveller/roll_forces.h"
-#include "leveller/setpoint_table.h"
-#include "optimize/leveller/nlopt_inverse.h"
+#include "millkit/io/atomic_file.h"
+#include "millkit/io/csv.h"
+#include "millkit/io/input_error.h"
+#include "millkit/io/output_files.h"
+#include "millkit/leveller/leveller_config.h"
+#include "millkit/leveller/linkage.h"
+#include "millkit/leveller/roll_forces.h"
+#include "millkit/leveller/setpoint_table.h"
+#include "millkit/optimize/leveller/nlopt_inverse.h"
 
 namespace millkit::cli {
 namespace {

@@ -6,7 +6,7 @@
 #include <iostream>
 
 #include "cli/commands.h"
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"MillKit: rolling-mill drive-line dynamics, identification and leveller setpoints"};

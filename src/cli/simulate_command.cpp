@@ -5,13 +5,13 @@
 #include <optional>
 
 #include "cli/commands.h"
-#include "driveline/result_csv.h"
-#include "driveline/simulation.h"
-#include "io/atomic_file.h"
-#include "io/input_error.h"
-#include "io/output_files.h"
-#include "io/progress_line.h"
 #include "io/toml_section.h"
+#include "millkit/driveline/result_csv.h"
+#include "millkit/driveline/simulation.h"
+#include "millkit/io/atomic_file.h"
+#include "millkit/io/input_error.h"
+#include "millkit/io/output_files.h"
+#include "millkit/io/progress_line.h"
 
 namespace millkit::cli {
 namespace {

@@ -1,19 +1,19 @@
 // [mpirun -np N] millkit sweep SCENE.toml --config SWEEP.toml --out cases.csv [--plot kd.svg]
 //                [--threads N] [--quiet]
 // What-if sweep over named scene parameters (issue 5): one CSV row per case, Kd plots. The
-// configuration keys are documented in src/sweep/sweep_config.h.
+// configuration keys are documented in include/millkit/sweep/sweep_config.h.
 #include <iostream>
 #include <memory>
 
 #include "cli/commands.h"
-#include "io/atomic_file.h"
-#include "io/input_error.h"
-#include "io/output_files.h"
-#include "io/svg_plot.h"
-#include "sweep/mpi_runner.h"
-#include "sweep/sweep_config.h"
-#include "sweep/sweep_runner.h"
-#include "sweep/sweep_table.h"
+#include "millkit/io/atomic_file.h"
+#include "millkit/io/input_error.h"
+#include "millkit/io/output_files.h"
+#include "millkit/io/svg_plot.h"
+#include "millkit/sweep/mpi_runner.h"
+#include "millkit/sweep/sweep_config.h"
+#include "millkit/sweep/sweep_runner.h"
+#include "millkit/sweep/sweep_table.h"
 
 namespace millkit::cli {
 namespace {

@@ -1,4 +1,4 @@
-#include "driveline/backlash_law.h"
+#include "millkit/driveline/backlash_law.h"
 
 namespace millkit::driveline {
 

@@ -10,7 +10,7 @@
 #include <limits>
 
 #include "driveline/output_recorder.h"
-#include "driveline/simulation.h"
+#include "millkit/driveline/simulation.h"
 #include "numerics/sundials_handles.h"
 
 namespace millkit::driveline {

@@ -1,4 +1,4 @@
-#include "driveline/model.h"
+#include "millkit/driveline/model.h"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -8,8 +8,8 @@
 #include <numeric>
 #include <sstream>
 
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::driveline {
 namespace {

@@ -1,4 +1,4 @@
-#include "driveline/natural_frequencies.h"
+#include "millkit/driveline/natural_frequencies.h"
 
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>

@@ -12,7 +12,7 @@
 #include <functional>
 #include <vector>
 
-#include "driveline/simulation.h"
+#include "millkit/driveline/simulation.h"
 
 namespace millkit::driveline {
 

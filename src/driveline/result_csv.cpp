@@ -1,10 +1,10 @@
-#include "driveline/result_csv.h"
+#include "millkit/driveline/result_csv.h"
 
 #include <cmath>
 #include <cstdio>
 
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::driveline {
 

@@ -1,14 +1,14 @@
-#include "driveline/scene.h"
+#include "millkit/driveline/scene.h"
 
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <set>
 
-#include "driveline/model.h"
-#include "io/csv.h"
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/driveline/model.h"
+#include "millkit/io/csv.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::driveline {
 

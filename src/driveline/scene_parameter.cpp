@@ -1,10 +1,10 @@
-#include "driveline/scene_parameter.h"
+#include "millkit/driveline/scene_parameter.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::driveline {
 namespace {
@@ -29,24 +29,41 @@ double EarliestKnot(const Scene& scene) {
 
 double SceneParameter::Get(const Scene& scene) const {
   switch (kind) {
-    case Kind::kStiffness: return scene.links[index].stiffness_Nm_per_rad;
-    case Kind::kDamping: return scene.links[index].damping_Nms_per_rad;
-    case Kind::kBacklash: return scene.links[index].backlash_rad;
-    case Kind::kGapPosition: return scene.links[index].gap_position;
-    case Kind::kInertia: return scene.masses[index].inertia_kg_m2;
-    case Kind::kLoad: return SummedLoadAtEnd(scene, index);
-    case Kind::kBiteTime: return EarliestKnot(scene);
+    case Kind::kStiffness:
+      return scene.links[index].stiffness_Nm_per_rad;
+    case Kind::kDamping:
+      return scene.links[index].damping_Nms_per_rad;
+    case Kind::kBacklash:
+      return scene.links[index].backlash_rad;
+    case Kind::kGapPosition:
+      return scene.links[index].gap_position;
+    case Kind::kInertia:
+      return scene.masses[index].inertia_kg_m2;
+    case Kind::kLoad:
+      return SummedLoadAtEnd(scene, index);
+    case Kind::kBiteTime:
+      return EarliestKnot(scene);
   }
   return 0.0;
 }
 
 void SceneParameter::Set(double value, Scene* scene) const {
   switch (kind) {
-    case Kind::kStiffness: scene->links[index].stiffness_Nm_per_rad = value; return;
-    case Kind::kDamping: scene->links[index].damping_Nms_per_rad = value; return;
-    case Kind::kBacklash: scene->links[index].backlash_rad = value; return;
-    case Kind::kGapPosition: scene->links[index].gap_position = value; return;
-    case Kind::kInertia: scene->masses[index].inertia_kg_m2 = value; return;
+    case Kind::kStiffness:
+      scene->links[index].stiffness_Nm_per_rad = value;
+      return;
+    case Kind::kDamping:
+      scene->links[index].damping_Nms_per_rad = value;
+      return;
+    case Kind::kBacklash:
+      scene->links[index].backlash_rad = value;
+      return;
+    case Kind::kGapPosition:
+      scene->links[index].gap_position = value;
+      return;
+    case Kind::kInertia:
+      scene->masses[index].inertia_kg_m2 = value;
+      return;
     case Kind::kLoad: {
       const double current = SummedLoadAtEnd(*scene, index);
       if (current == 0.0) {
@@ -139,13 +156,20 @@ SceneParameter ParseSceneParameter(const Scene& scene, const std::string& name,
 ParameterRange PhysicalRange(SceneParameter::Kind kind) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   switch (kind) {
-    case SceneParameter::Kind::kStiffness: return {0.0, kInf, false};
-    case SceneParameter::Kind::kDamping: return {0.0, kInf, true};
-    case SceneParameter::Kind::kBacklash: return {0.0, kInf, true};
-    case SceneParameter::Kind::kGapPosition: return {-1.0, 1.0, true};
-    case SceneParameter::Kind::kInertia: return {0.0, kInf, false};
-    case SceneParameter::Kind::kLoad: return {-kInf, kInf, true};
-    case SceneParameter::Kind::kBiteTime: return {0.0, kInf, true};
+    case SceneParameter::Kind::kStiffness:
+      return {0.0, kInf, false};
+    case SceneParameter::Kind::kDamping:
+      return {0.0, kInf, true};
+    case SceneParameter::Kind::kBacklash:
+      return {0.0, kInf, true};
+    case SceneParameter::Kind::kGapPosition:
+      return {-1.0, 1.0, true};
+    case SceneParameter::Kind::kInertia:
+      return {0.0, kInf, false};
+    case SceneParameter::Kind::kLoad:
+      return {-kInf, kInf, true};
+    case SceneParameter::Kind::kBiteTime:
+      return {0.0, kInf, true};
   }
   return {-kInf, kInf, true};
 }

@@ -1,12 +1,12 @@
-#include "driveline/simulation.h"
+#include "millkit/driveline/simulation.h"
 
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <sstream>
 
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::driveline {
 

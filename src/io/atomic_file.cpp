@@ -1,12 +1,12 @@
-#include "io/atomic_file.h"
+#include "millkit/io/atomic_file.h"
 
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <system_error>
 
-#include "io/input_error.h"
-#include "io/output_files.h"
+#include "millkit/io/input_error.h"
+#include "millkit/io/output_files.h"
 
 namespace millkit {
 

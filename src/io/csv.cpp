@@ -1,4 +1,4 @@
-#include "io/csv.h"
+#include "millkit/io/csv.h"
 
 #include <cctype>
 #include <charconv>
@@ -6,7 +6,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit {
 namespace {

@@ -1,4 +1,4 @@
-#include "io/output_files.h"
+#include "millkit/io/output_files.h"
 
 #include <sys/stat.h>
 #include <unistd.h>
@@ -7,7 +7,7 @@
 #include <cstring>
 #include <mutex>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit {
 namespace {

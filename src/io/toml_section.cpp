@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit {
 

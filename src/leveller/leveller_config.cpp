@@ -1,11 +1,11 @@
-#include "leveller/leveller_config.h"
+#include "millkit/leveller/leveller_config.h"
 
 #include <cmath>
 #include <numbers>
 
-#include "io/input_error.h"
 #include "io/toml_section.h"
-#include "leveller/linkage.h"
+#include "millkit/io/input_error.h"
+#include "millkit/leveller/linkage.h"
 
 namespace millkit::leveller {
 namespace {

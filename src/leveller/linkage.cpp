@@ -1,4 +1,4 @@
-#include "leveller/linkage.h"
+#include "millkit/leveller/linkage.h"
 
 #include <ceres/jet.h>
 
@@ -6,7 +6,7 @@
 #include <cassert>
 #include <numbers>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::leveller {
 namespace {

@@ -1,10 +1,10 @@
-#include "leveller/roll_forces.h"
+#include "millkit/leveller/roll_forces.h"
 
 #include <cmath>
 #include <cstdio>
 
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::leveller {
 namespace {

@@ -1,12 +1,12 @@
-#include "leveller/setpoint_table.h"
+#include "millkit/leveller/setpoint_table.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::leveller {
 namespace {

@@ -1,4 +1,4 @@
-#include "leveller/strip_mechanics.h"
+#include "millkit/leveller/strip_mechanics.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -6,8 +6,8 @@
 #include <cmath>
 #include <limits>
 
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::leveller {
 namespace {

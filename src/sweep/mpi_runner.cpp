@@ -1,4 +1,4 @@
-#include "sweep/mpi_runner.h"
+#include "millkit/sweep/mpi_runner.h"
 
 #include <algorithm>
 #include <chrono>
@@ -10,7 +10,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 #if MILLKIT_WITH_MPI
 #include <mpi.h>

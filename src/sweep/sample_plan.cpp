@@ -1,4 +1,4 @@
-#include "sweep/sample_plan.h"
+#include "millkit/sweep/sample_plan.h"
 
 #include <algorithm>
 #include <cassert>

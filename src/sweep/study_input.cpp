@@ -4,7 +4,7 @@
 #include <numeric>
 #include <set>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::sweep {
 

@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "driveline/scene_parameter.h"
 #include "io/toml_section.h"
-#include "sweep/sample_plan.h"
+#include "millkit/driveline/scene_parameter.h"
+#include "millkit/sweep/sample_plan.h"
 
 namespace millkit::sweep {
 

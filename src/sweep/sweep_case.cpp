@@ -1,6 +1,6 @@
-#include "sweep/sweep_case.h"
+#include "millkit/sweep/sweep_case.h"
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::sweep {
 

@@ -1,10 +1,10 @@
-#include "sweep/sweep_config.h"
+#include "millkit/sweep/sweep_config.h"
 
 #include <cmath>
 #include <set>
 
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/io/input_error.h"
 #include "sweep/study_input.h"
 
 namespace millkit::sweep {

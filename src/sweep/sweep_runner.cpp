@@ -1,4 +1,4 @@
-#include "sweep/sweep_runner.h"
+#include "millkit/sweep/sweep_runner.h"
 
 #include <atomic>
 #include <chrono>
@@ -8,7 +8,7 @@
 #include <mutex>
 #include <thread>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit::sweep {
 namespace {

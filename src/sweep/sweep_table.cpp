@@ -1,4 +1,4 @@
-#include "sweep/sweep_table.h"
+#include "millkit/sweep/sweep_table.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,12 +1,12 @@
 // Reading and validating a balancer description (balancer_input.h): the seed dataset, the round
 // trip through TOML, and every kind of bad input named by file, table and key.
-#include "balancer/balancer_input.h"
+#include "millkit/balancer/balancer_input.h"
 
 #include <catch2/catch.hpp>
 #include <string>
 
-#include "io/input_error.h"
 #include "io/toml_section.h"
+#include "millkit/io/input_error.h"
 #include "support/run_cli.h"
 
 namespace bal = millkit::balancer;

@@ -1,7 +1,7 @@
 // The seed's case end to end: every number seed 002 prints (restated in SPEC.md §7) reproduced to
 // its printed digits from the inputs alone, and the readings that were needed where the printed
 // number does not follow from the seed's stated data or its garbled formula.
-#include "balancer/balancer.h"
+#include "millkit/balancer/balancer.h"
 
 #include <catch2/catch.hpp>
 #include <cmath>

@@ -1,6 +1,6 @@
 // The cardan cross pin (cardan_cross.h): consistency of the minimum diameter with the allowable
 // stress, the safety factor product and the preconditions.
-#include "balancer/cardan_cross.h"
+#include "millkit/balancer/cardan_cross.h"
 
 #include <catch2/catch.hpp>
 #include <cmath>

@@ -1,6 +1,6 @@
 // The idle-gap rule (idle_gap_rule.h): seed 000's ±3…5 % band, and our reading of it as
 // gap_position for a drive-line scene (SPEC.md §2.4).
-#include "balancer/idle_gap_rule.h"
+#include "millkit/balancer/idle_gap_rule.h"
 
 #include <catch2/catch.hpp>
 #include <stdexcept>

@@ -1,6 +1,6 @@
 // Physics of the roller support (roller_support.h) on its own: equilibrium, symmetry, limits and
 // the preconditions. References are closed forms of beam statics.
-#include "balancer/roller_support.h"
+#include "millkit/balancer/roller_support.h"
 
 #include <catch2/catch.hpp>
 #include <cmath>

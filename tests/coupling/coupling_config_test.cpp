@@ -1,10 +1,10 @@
 // The coupling configuration: what it accepts and every rule it enforces with file and key named.
-#include "optimize/coupling/coupling_config.h"
+#include "millkit/optimize/coupling/coupling_config.h"
 
 #include <catch2/catch.hpp>
 #include <cmath>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 #include "support/study_support.h"
 
 using namespace millkit::coupling;

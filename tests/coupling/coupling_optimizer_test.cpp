@@ -7,15 +7,15 @@
 // |sin x| / x, x = ω tr / 2. So Kd(c) = 1 + |sin x| / x: the global minimum Kd = 1 sits at x = π (ω
 // = 2π/tr), a V-shaped kink; on the bounds used below there is a second, worse basin at the stiff
 // end (x ≈ 1.73π, Kd ≈ 1.137) behind a ridge (x ≈ 1.43π, Kd ≈ 1.217).
-#include "optimize/coupling/coupling_optimizer.h"
+#include "millkit/optimize/coupling/coupling_optimizer.h"
 
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <limits>
 
 #include "driveline/scene_builder.h"
-#include "io/input_error.h"
-#include "driveline/natural_frequencies.h"
+#include "millkit/driveline/natural_frequencies.h"
+#include "millkit/io/input_error.h"
 #include "support/study_support.h"
 
 using namespace millkit::coupling;

@@ -1,8 +1,8 @@
-#include "driveline/backlash_law.h"
-
-#include "driveline/model.h"
+#include "millkit/driveline/backlash_law.h"
 
 #include <catch2/catch.hpp>
+
+#include "millkit/driveline/model.h"
 
 using namespace millkit::driveline;
 using Catch::Matchers::WithinAbs;
@@ -60,8 +60,7 @@ TEST_CASE("The limited law switches between spring-damper and doubled spring at 
              WithinAbs(2 * tau_c, kTorqueTolerance));
   // Continuous across the switch.
   CHECK_THAT(BacklashTorque(ContactLaw::kLimited, kC, kD, kB, psi, v_equal * (1 - 1e-12)),
-             WithinAbs(BacklashTorque(ContactLaw::kLimited, kC, kD, kB, psi,
-                                      v_equal * (1 + 1e-12)),
+             WithinAbs(BacklashTorque(ContactLaw::kLimited, kC, kD, kB, psi, v_equal * (1 + 1e-12)),
                        1e-6));
 }
 
@@ -86,9 +85,9 @@ TEST_CASE("Each mode's coefficients reproduce the law in the region of that mode
                         {-0.011, -10.0, LinkMode::kNegDoubleSpring}};
   for (const auto& c : cases) {
     const auto k = CoefficientsOf(c.mode, kC, kD, kB);
-    CHECK_THAT(k.kpsi * c.psi + k.kv * c.v + k.k0,
-               WithinAbs(BacklashTorque(ContactLaw::kLimited, kC, kD, kB, c.psi, c.v),
-                         kTorqueTolerance));
+    CHECK_THAT(
+        k.kpsi * c.psi + k.kv * c.v + k.k0,
+        WithinAbs(BacklashTorque(ContactLaw::kLimited, kC, kD, kB, c.psi, c.v), kTorqueTolerance));
   }
 }
 

@@ -3,7 +3,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 
-#include "driveline/simulation.h"
+#include "millkit/driveline/simulation.h"
 #include "scene_builder.h"
 #include "support/run_cli.h"
 
@@ -82,8 +82,7 @@ TEST_CASE("A link closes its gap after b / delta-omega", "[closed_form]") {
   }
 }
 
-TEST_CASE("Energy is conserved without damping over a thousand bounce periods",
-          "[closed_form]") {
+TEST_CASE("Energy is conserved without damping over a thousand bounce periods", "[closed_form]") {
   // Free flight across the gap and elastic contact on each flank, no damping, no load:
   // E = ½ Σ J ω² + ½ c (|ψ| − b/2)² stays constant. Period 2 (b/Δω + π/√(2c/J)) ≈ 0.0844 s.
   const double b = 0.01, delta_omega = 0.5, c = 1e4;

@@ -11,8 +11,8 @@
 #include <cstdint>
 #include <random>
 
-#include "driveline/model.h"
-#include "driveline/scene.h"
+#include "millkit/driveline/model.h"
+#include "millkit/driveline/scene.h"
 
 namespace millkit::driveline::testing {
 

@@ -3,8 +3,8 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 
-#include "driveline/simulation.h"
-#include "io/input_error.h"
+#include "millkit/driveline/simulation.h"
+#include "millkit/io/input_error.h"
 #include "scene_builder.h"
 #include "support/run_cli.h"
 

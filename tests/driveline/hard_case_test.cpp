@@ -2,8 +2,8 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 
-#include "driveline/simulation.h"
-#include "io/input_error.h"
+#include "millkit/driveline/simulation.h"
+#include "millkit/io/input_error.h"
 #include "scene_builder.h"
 #include "support/run_cli.h"
 
@@ -142,7 +142,8 @@ TEST_CASE("A drive that saturates loses speed at the rate its limit allows, then
   const Model model(scene);
   const auto exact = Simulate(model, {});
   REQUIRE(exact.summary.success);
-  const double rate = (exact.mass_speed_rad_per_s(400, 0) - exact.mass_speed_rad_per_s(300, 0)) / 0.1;
+  const double rate =
+      (exact.mass_speed_rad_per_s(400, 0) - exact.mass_speed_rad_per_s(300, 0)) / 0.1;
   CHECK_THAT(rate, WithinAbs(-limit / inertia, 1e-3));  // e^{-20} of the lag left at 0.3 s
   // The integrator winds up while saturated (SPEC §2.3 has no anti-windup): the speed overshoots,
   // then settles back to the reference.

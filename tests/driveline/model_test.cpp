@@ -1,9 +1,9 @@
 // Model pieces the solvers build on (SPEC §2.5): the link torques as a linear map of the state.
-#include <catch2/catch.hpp>
+#include "millkit/driveline/model.h"
 
+#include <catch2/catch.hpp>
 #include <random>
 
-#include "driveline/model.h"
 #include "scene_builder.h"
 #include "support/run_cli.h"
 
@@ -49,7 +49,8 @@ void CheckTorqueRows(const Model& model) {
 }  // namespace
 
 TEST_CASE("The link torque rows reproduce Outputs in every phase", "[model]") {
-  CheckTorqueRows(Model(LoadScene(millkit::testing::SourcePath("datasets/scenes/mill5_bite.toml"))));
+  CheckTorqueRows(
+      Model(LoadScene(millkit::testing::SourcePath("datasets/scenes/mill5_bite.toml"))));
 }
 
 TEST_CASE("The link torque rows reproduce Outputs for links made rigid by the band", "[model]") {

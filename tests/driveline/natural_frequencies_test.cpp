@@ -1,11 +1,11 @@
 // Undamped natural frequencies with the gaps closed: closed forms and a cross-check.
-#include "driveline/natural_frequencies.h"
+#include "millkit/driveline/natural_frequencies.h"
 
 #include <catch2/catch.hpp>
 #include <cmath>
 
-#include "driveline/model.h"
 #include "driveline/scene_builder.h"
+#include "millkit/driveline/model.h"
 #include "support/study_support.h"
 
 using namespace millkit::driveline;

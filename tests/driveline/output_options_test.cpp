@@ -1,21 +1,20 @@
 // SimulationOptions::output_times, keep_samples, sample_sink and progress (issues 2, 13): sampling
 // on a grid unrelated to the scene's, the Kd-only fast path, and streaming a run sample by sample.
-#include <catch2/catch.hpp>
-
 #include <algorithm>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <cstring>
 #include <functional>
 #include <limits>
 
-#include "driveline/simulation.h"
-#include "io/input_error.h"
+#include "millkit/driveline/simulation.h"
+#include "millkit/io/input_error.h"
 #include "scene_builder.h"
 #include "support/run_cli.h"
 
 using namespace millkit::driveline;
-using millkit::driveline::testing::RelativeDifference;
 using Catch::Matchers::Contains;
+using millkit::driveline::testing::RelativeDifference;
 
 namespace {
 Model FiveMass() {

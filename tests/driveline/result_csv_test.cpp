@@ -1,11 +1,11 @@
-// The result CSV of `millkit simulate` (driveline/result_csv.h): column choice, --every, the size
-// estimate and its warning.
-#include "driveline/result_csv.h"
+// The result CSV of `millkit simulate` (millkit/driveline/result_csv.h): column choice, --every,
+// the size estimate and its warning.
+#include "millkit/driveline/result_csv.h"
 
 #include <catch2/catch.hpp>
 #include <sstream>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 #include "scene_builder.h"
 
 using namespace millkit::driveline;

@@ -3,7 +3,7 @@
 
 #include <string>
 
-#include "driveline/simulation.h"
+#include "millkit/driveline/simulation.h"
 
 namespace millkit::driveline::testing {
 

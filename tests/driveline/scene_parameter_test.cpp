@@ -1,15 +1,15 @@
 // Named scene parameters (shared by identification, coupling optimisation and sweeps).
-#include "driveline/scene_parameter.h"
+#include "millkit/driveline/scene_parameter.h"
 
 #include <catch2/catch.hpp>
 
 #include "driveline/scene_builder.h"
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 using namespace millkit::driveline;
 using namespace millkit::driveline::testing;
-using millkit::InputError;
 using Catch::Matchers::Contains;
+using millkit::InputError;
 
 namespace {
 

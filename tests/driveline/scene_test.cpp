@@ -1,10 +1,10 @@
 // Scene loading and validation (SPEC §2.6): every rule has a test naming the key in the error.
-#include "driveline/scene.h"
+#include "millkit/driveline/scene.h"
 
 #include <catch2/catch.hpp>
 
-#include "driveline/model.h"
-#include "io/input_error.h"
+#include "millkit/driveline/model.h"
+#include "millkit/io/input_error.h"
 #include "support/run_cli.h"
 
 using namespace millkit::driveline;

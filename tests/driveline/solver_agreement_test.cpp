@@ -1,7 +1,7 @@
 // Cross-checks between the event-exact solver and CVODE (SPEC §2.7).
 #include <catch2/catch.hpp>
 
-#include "driveline/simulation.h"
+#include "millkit/driveline/simulation.h"
 #include "scene_builder.h"
 #include "support/run_cli.h"
 

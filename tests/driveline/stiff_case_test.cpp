@@ -9,10 +9,10 @@
 #include <set>
 #include <vector>
 
-#include "driveline/simulation.h"
 #include "extreme_scenes.h"
 #include "hard_scenes.h"
-#include "io/input_error.h"
+#include "millkit/driveline/simulation.h"
+#include "millkit/io/input_error.h"
 #include "scene_builder.h"
 
 using namespace millkit::driveline;

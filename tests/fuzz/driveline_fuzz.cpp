@@ -12,8 +12,8 @@
 #include <optional>
 
 #include "driveline/extreme_scenes.h"
-#include "driveline/simulation.h"
-#include "io/input_error.h"
+#include "millkit/driveline/simulation.h"
+#include "millkit/io/input_error.h"
 
 using namespace millkit::driveline;
 

@@ -1,5 +1,5 @@
 // COMTRADE records (issue 13, item 2): the tests write their own .cfg/.dat pairs.
-#include "identify/comtrade.h"
+#include "millkit/identify/comtrade.h"
 
 #include <catch2/catch.hpp>
 #include <cmath>
@@ -10,7 +10,7 @@
 #include <string>
 
 #include "fit_fixture.h"
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 #include "support/run_cli.h"
 
 namespace millkit::identify {

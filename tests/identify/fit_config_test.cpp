@@ -1,11 +1,11 @@
-// Fit configs: every rule of identify/fit_config.h names the file and key.
-#include "identify/fit_config.h"
+// Fit configs: every rule of include/millkit/identify/fit_config.h names the file and key.
+#include "millkit/identify/fit_config.h"
 
 #include <catch2/catch.hpp>
 
 #include "identify/fit_fixture.h"
-#include "identify/fit_report.h"
-#include "io/input_error.h"
+#include "millkit/identify/fit_report.h"
+#include "millkit/io/input_error.h"
 #include "support/run_cli.h"
 
 using namespace millkit::identify;

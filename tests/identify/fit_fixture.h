@@ -9,11 +9,11 @@
 #include <string>
 #include <vector>
 
-#include "driveline/scene.h"
-#include "driveline/scene_parameter.h"
-#include "identify/fit.h"
-#include "identify/fit_config.h"
-#include "identify/record_generator.h"
+#include "millkit/driveline/scene.h"
+#include "millkit/driveline/scene_parameter.h"
+#include "millkit/identify/fit.h"
+#include "millkit/identify/fit_config.h"
+#include "millkit/identify/record_generator.h"
 #include "support/run_cli.h"
 
 namespace millkit::identify::testing {

@@ -2,8 +2,8 @@
 // ±50 % start) and flags what a record cannot tell.
 #include <catch2/catch.hpp>
 
-#include "identify/fit.h"
 #include "identify/fit_fixture.h"
+#include "millkit/identify/fit.h"
 
 using namespace millkit::identify;
 using namespace millkit::identify::testing;

@@ -10,9 +10,9 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "driveline/scene_parameter.h"
 #include "fit_fixture.h"
 #include "identify/random_line.h"
+#include "millkit/driveline/scene_parameter.h"
 #include "support/run_cli.h"
 
 namespace millkit::identify {

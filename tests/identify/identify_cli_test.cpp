@@ -6,11 +6,11 @@
 #include <regex>
 #include <vector>
 
-#include "driveline/scene.h"
 #include "identify/fit_fixture.h"
-#include "identify/oscillogram.h"
-#include "identify/record_generator.h"
 #include "io/toml_section.h"
+#include "millkit/driveline/scene.h"
+#include "millkit/identify/oscillogram.h"
+#include "millkit/identify/record_generator.h"
 #include "support/run_cli.h"
 
 using Catch::Matchers::Contains;

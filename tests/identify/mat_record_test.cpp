@@ -1,7 +1,7 @@
 // MATLAB records (issue 13, item 2): MAT v5 and v7.3 files written here with libmatio read the
 // same record as the CSV, at the top level or inside a struct; what cannot be a record is an
 // error naming the file and the variable.
-#include "identify/mat_record.h"
+#include "millkit/identify/mat_record.h"
 
 #include <matio.h>
 
@@ -13,9 +13,9 @@
 #include <vector>
 
 #include "fit_fixture.h"
-#include "identify/fit.h"
-#include "identify/oscillogram.h"
-#include "io/input_error.h"
+#include "millkit/identify/fit.h"
+#include "millkit/identify/oscillogram.h"
+#include "millkit/io/input_error.h"
 #include "support/run_cli.h"
 
 namespace millkit::identify {

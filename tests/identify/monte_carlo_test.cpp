@@ -3,8 +3,8 @@
 #include <cmath>
 #include <vector>
 
-#include "identify/fit.h"
 #include "identify/fit_fixture.h"
+#include "millkit/identify/fit.h"
 
 using namespace millkit::identify;
 using namespace millkit::identify::testing;

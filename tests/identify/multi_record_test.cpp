@@ -3,10 +3,10 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
-#include "identify/fit.h"
 #include "identify/fit_fixture.h"
-#include "identify/fit_report.h"
-#include "io/input_error.h"
+#include "millkit/identify/fit.h"
+#include "millkit/identify/fit_report.h"
+#include "millkit/io/input_error.h"
 #include "support/run_cli.h"
 
 using namespace millkit::identify;

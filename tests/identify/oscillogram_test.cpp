@@ -1,11 +1,11 @@
 // Oscillogram records (SPEC §3): bad records are rejected naming file, row and column.
-#include "identify/oscillogram.h"
+#include "millkit/identify/oscillogram.h"
 
 #include <algorithm>
 #include <catch2/catch.hpp>
 
-#include "io/csv.h"
-#include "io/input_error.h"
+#include "millkit/io/csv.h"
+#include "millkit/io/input_error.h"
 
 using namespace millkit::identify;
 using Catch::Matchers::Contains;

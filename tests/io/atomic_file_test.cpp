@@ -1,4 +1,4 @@
-#include "io/atomic_file.h"
+#include "millkit/io/atomic_file.h"
 
 #include <catch2/catch.hpp>
 

@@ -1,8 +1,8 @@
-#include "io/csv.h"
+#include "millkit/io/csv.h"
 
 #include <catch2/catch.hpp>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 
 using Catch::Matchers::Contains;
 using millkit::InputError;

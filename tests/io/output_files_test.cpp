@@ -1,7 +1,7 @@
-// The output protocol of every command (issue 13, io/output_files.h): checked before the work,
-// never over an input or anything that is not a regular file, written atomically, and nothing left
-// behind by an error or a signal.
-#include "io/output_files.h"
+// The output protocol of every command (issue 13, millkit/io/output_files.h): checked before the
+// work, never over an input or anything that is not a regular file, written atomically, and nothing
+// left behind by an error or a signal.
+#include "millkit/io/output_files.h"
 
 #include <sys/stat.h>
 #include <unistd.h>
@@ -10,8 +10,8 @@
 #include <filesystem>
 #include <string>
 
-#include "io/atomic_file.h"
-#include "io/input_error.h"
+#include "millkit/io/atomic_file.h"
+#include "millkit/io/input_error.h"
 #include "support/run_cli.h"
 
 namespace millkit {

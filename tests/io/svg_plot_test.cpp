@@ -1,5 +1,5 @@
 // The SVG plot writer: polylines through the drawable points, axes, labels, panels, heat maps.
-#include "io/svg_plot.h"
+#include "millkit/io/svg_plot.h"
 
 #include <algorithm>
 #include <catch2/catch.hpp>

@@ -7,7 +7,7 @@
 #include <sstream>
 #include <vector>
 
-#include "io/csv.h"
+#include "millkit/io/csv.h"
 #include "support/run_cli.h"
 
 using Catch::Matchers::Contains;

@@ -1,9 +1,9 @@
 // Leveller configuration TOML (SPEC.md §6.2): defaults, degenerate geometry, bad keys.
-#include "leveller/leveller_config.h"
+#include "millkit/leveller/leveller_config.h"
 
 #include <catch2/catch.hpp>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 #include "support/run_cli.h"
 
 using namespace millkit::leveller;

@@ -1,6 +1,6 @@
 // Linkage kinematics (SPEC.md §6.2): forward checks, closed-form inverse, reach, dead centres,
 // accuracy, hydraulic variant.
-#include "leveller/linkage.h"
+#include "millkit/leveller/linkage.h"
 
 #include <catch2/catch.hpp>
 #include <cmath>

@@ -1,6 +1,6 @@
 // NLopt inverse kinematics (SPEC.md §6.2): agreement with the closed form, own acceptance test,
 // nearest reachable point.
-#include "optimize/leveller/nlopt_inverse.h"
+#include "millkit/optimize/leveller/nlopt_inverse.h"
 
 #include <catch2/catch.hpp>
 #include <cmath>

@@ -1,5 +1,5 @@
 // Roll forces and drive power (SPEC.md §6.1, seed 004 §1).
-#include "leveller/roll_forces.h"
+#include "millkit/leveller/roll_forces.h"
 
 #include <catch2/catch.hpp>
 #include <random>

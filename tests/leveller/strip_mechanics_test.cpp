@@ -1,6 +1,6 @@
 // Strip mechanics (SPEC.md §6.1): moment-curvature law, Masing reversals, intermesh from curvature,
 // setpoints.
-#include "leveller/strip_mechanics.h"
+#include "millkit/leveller/strip_mechanics.h"
 
 #include <catch2/catch.hpp>
 #include <cmath>

@@ -4,8 +4,8 @@
 
 #include <string>
 
-#include "driveline/scene.h"
-#include "io/input_error.h"
+#include "millkit/driveline/scene.h"
+#include "millkit/io/input_error.h"
 #include "support/run_cli.h"
 
 namespace millkit::testing {

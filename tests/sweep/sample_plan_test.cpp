@@ -1,5 +1,5 @@
 // Sample plans: full grids and seeded Latin hypercubes.
-#include "sweep/sample_plan.h"
+#include "millkit/sweep/sample_plan.h"
 
 #include <catch2/catch.hpp>
 #include <cmath>

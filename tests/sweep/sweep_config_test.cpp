@@ -1,9 +1,9 @@
 // The sweep configuration: what it accepts, and every rule it enforces with file and key named.
-#include "sweep/sweep_config.h"
+#include "millkit/sweep/sweep_config.h"
 
 #include <catch2/catch.hpp>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
 #include "support/study_support.h"
 
 using namespace millkit::sweep;

@@ -1,5 +1,5 @@
 // The threaded case runner: order, determinism, failed cases, errors, progress.
-#include "sweep/sweep_runner.h"
+#include "millkit/sweep/sweep_runner.h"
 
 #include <catch2/catch.hpp>
 #include <chrono>
@@ -8,10 +8,10 @@
 #include <thread>
 #include <tuple>
 
-#include "io/input_error.h"
+#include "millkit/io/input_error.h"
+#include "millkit/sweep/sweep_table.h"
 #include "support/study_support.h"
 #include "sweep/study_input.h"
-#include "sweep/sweep_table.h"
 
 using namespace millkit::sweep;
 using Catch::Matchers::Contains;

@@ -1,0 +1,237 @@
+// Identification of drive-line parameters from oscillograms (SPEC.md §4; issues 3 and 12).
+//
+// The model of channel c at record time t_k is  y_ck ≈ g_c · m_c(t_k; p) + o_c, with m_c the
+// simulated torque of the channel's link (exact solver, sampled at the record's own times: the
+// model is resampled, never the data), p the free scene parameters (damping, backlash, stiffness,
+// inertia, gap_position, bite_time, ...), g_c and o_c the channel's gain and offset, bounded
+// (gain 0.5–2, offset within ± the channel's peak unless the config says otherwise). The fit
+// minimises ½ Σ_c Σ_k w_c² (g_c m_ck + o_c − y_ck)² over the window, with w_c = 1/σ_c fixed
+// before any model is run: σ_c is the channel's noise measured on the record itself
+// (identify/record_noise.h). Every candidate minimum is compared on that one cost.
+//
+// Several records: each is its own run of the scene; scene parameters are shared, a per-record
+// parameter (bite_time by default) has one value per record, every channel of every record its
+// own gain and offset.
+//
+// The search (identify/multistart.h, GlobalSearch): a Latin-hypercube scan over every free
+// parameter marked `scan` (all by default; dampings and stiffnesses on a log scale,
+// identify/parameter_map.h), ranked on a short window after the onset with gains and offsets
+// solved in closed form at each point (variable projection); the timing of the best points fitted
+// on that window; Levenberg–Marquardt from the best distinct ones through a fine continuation
+// over the window length and directly on the whole window; one escalated search when the best
+// minimum misfits; basin hops and axis probes around the best. Derivatives: finite differences of
+// the exact solver (forward while iterating, central for the covariance).
+//
+// Uncertainty: the covariance of every fitted quantity from the noise-weighted Jacobian,
+// scaled by the residual variance 2·cost/(N − P) (the report says so); where the cost along a
+// parameter's profile direction rises slower than the linearisation says, its standard error is
+// widened to match. Parameters the record cannot determine are flagged not identifiable.
+//
+// The verdict (FitSummary::verdict), in this order:
+//   degenerate     the record cannot support the fit (a value that is not a torque, a flat or
+//                  dead channel, fewer samples after the response starts than fitted quantities);
+//   not_converged  Levenberg–Marquardt did not converge at the best minimum (and, after the
+//                  rules below, when a probe beside the answer found a lower cost);
+//   misfit         some channel's residual is not its noise, at the one-sided level misfit_z:
+//                  its variance exceeds the noise variance (log-ratio test, both variances'
+//                  degrees of freedom), or its autocorrelation over up to 20 lags differs from
+//                  the quiet stretch's (portmanteau test, Wilson–Hilferty normal z);
+//   ambiguous      another local minimum, more than distinct_minimum_se standard errors away in
+//                  some identifiable parameter, has a χ² within ambiguity_chi2 of the best;
+//   ok             otherwise (parameters flagged not identifiable are still ok).
+#pragma once
+
+#include <Eigen/Dense>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "millkit/driveline/scene.h"
+#include "millkit/identify/fit_config.h"
+#include "millkit/identify/oscillogram.h"
+
+namespace millkit::identify {
+
+// Model samples per record step where a channel models the recorder's low-pass filter.
+inline constexpr int kFilterOversample = 4;
+
+// Every knob of the fit's strategy and judgement. The defaults are set by the random-lines
+// benchmark (bench/identify/bench_random_lines.cpp), not by any one scene.
+struct FitOptions {
+  // Levenberg–Marquardt at the final stage.
+  int max_iterations = 100;
+  double function_tolerance = 1e-9;
+  double parameter_tolerance = 1e-8;
+  double derivative_step = 1e-6;  // in unit coordinates (fraction of the bound range)
+  // Central instead of forward differences while iterating (the covariance always uses central).
+  bool central_differences = false;
+  int threads = 1;  // Ceres threads (the simulations themselves are serial)
+
+  // Continuation: stages end at onset + span/d, d = first_stage_divisor, then divided by
+  // continuation_ratio down to 1; the first timing_only_stages fit only gaps, gap positions and
+  // the bite time; a stage before the last stops after stage_iterations. A stiff shaft with a
+  // small gap rattles many times over a record: its cost valley in the gap narrows as the window
+  // grows, and a stage that grows the window too much at once jumps out of it.
+  double first_stage_divisor = 16.0;
+  double continuation_ratio = 1.189207115002721;
+  int timing_only_stages = 1;
+  int stage_iterations = 10;
+  // The direct whole-window fit of a start is finished only when its try, capped at
+  // direct_try_iterations, ends below direct_retry_factor times the continued fit's cost.
+  double direct_retry_factor = 1.5;
+  int direct_try_iterations = 10;
+  // When the best minimum fails the misfit test, one more search with escalation_factor times the
+  // scan points (other points) and twice the starts; 1: none.
+  int escalation_factor = 4;
+  // The scan's best preselect_factor × starts points go through the first continuation stage
+  // (cheap: a short window); the best distinct results are the starts.
+  int preselect_factor = 4;
+  // Scan points closer than this (RMS over the scanned unit coordinates) are one start.
+  double distinct_start = 0.1;
+
+  // Identifiability: a parameter is flagged when the column-scaled Jacobian is rank-deficient
+  // in its direction (reciprocal condition below rank_tolerance) or its standard error exceeds
+  // unidentifiable_fraction of its bound width.
+  double rank_tolerance = 1e-7;
+  double unidentifiable_fraction = 0.25;
+  // The profile check of the standard errors probes ± profile_step standard errors, and each
+  // parameter's axis at profile_points points; an axis probe within profile_chi2 of the best χ²
+  // widens the standard error (identify/uncertainty.h). A probe below the best cost restarts
+  // Levenberg–Marquardt from it, up to profile_restarts times.
+  double profile_step = 2.0;
+  int profile_points = 8;
+  double profile_chi2 = 25.0;
+  int profile_restarts = 2;
+  // Basin hopping from the best minimum: hops refinements from points hop_radius standard
+  // errors away in random directions (seeded by hop_seed); a lower one becomes the best.
+  int hops = 4;
+  double hop_radius = 5.0;
+  unsigned hop_seed = 1;
+
+  // Verdict levels (see above).
+  double misfit_z = 3.0;
+  double ambiguity_chi2 = 4.0;
+  double distinct_minimum_se = 3.0;
+
+  // Called after every simulation with what the fit is doing and the simulations so far (the
+  // command line throttles it into a progress line); none when empty.
+  std::function<void(const std::string& activity, long simulations)> progress;
+
+  // Throws InputError naming the option and its rule.
+  void Validate() const;
+};
+
+struct ParameterEstimate {
+  std::string name;    // scene parameter name; name@<record label> for a per-record copy
+  std::string record;  // source of the record a per-record copy belongs to (else empty)
+  std::string unit;
+  double value = 0.0;
+  double standard_error = 0.0;
+  double start = 0.0;
+  double lower = 0.0;
+  double upper = 0.0;
+  bool at_bound = false;
+  bool identifiable = true;
+  std::string why_not;  // when not identifiable
+};
+
+// One channel of one record. Torques (offset, noise, residual, traces) are in the channel's unit.
+struct ChannelEstimate {
+  std::string column;
+  std::string link;
+  std::string record;        // the record's source (file)
+  std::string record_label;  // RecordLabels() of the fit's records
+  std::string unit = "N*m";  // ChannelSpec::unit
+  double gain = 1.0;
+  double gain_se = 0.0;
+  double offset = 0.0;
+  double offset_se = 0.0;
+  double weight = 0.0;       // 1/unit, as used in the fit
+  double noise = 0.0;        // the channel's noise measured on the record
+  std::string noise_source;  // "quiet stretch (m samples)" or "second differences"
+  double chi2_ratio = 0.0;   // residual variance / noise variance
+  double whiteness_z = 0.0;  // the residual's autocorrelation against the noise's, as a normal z
+  bool gain_at_bound = false;
+  bool offset_at_bound = false;
+  double rms_residual = 0.0;
+  int samples = 0;
+  std::vector<double> time_s;  // the window samples' times (s)
+  std::vector<double> fitted;  // g·m + o at the window samples
+  std::vector<double> measured;
+};
+
+struct LocalMinimum {
+  double cost = 0.0;  // the fixed-weight cost: every minimum on the same scale
+  int start = 0;
+  std::vector<double> values;  // free scene parameters, physical units
+  int iterations = 0;
+  bool converged = false;
+};
+
+struct FitSummary {
+  bool success = false;
+  // "ok", "misfit", "ambiguous", "not_converged" or "degenerate" (empty when the fit failed).
+  std::string verdict;
+  std::vector<std::string> warnings;  // reasons for the verdict and other doubts, in words
+  std::string message;
+  std::string ceres_brief;  // ceres::Solver::Summary::BriefReport() of the final fit
+  std::string termination;
+  int iterations = 0;
+  int scan_points = 0;
+  int starts = 0;
+  bool escalated = false;  // the misfit of the first search's best minimum asked for a second
+  int starts_at_best = 0;  // starts whose fits reach the best minimum (same point)
+  long simulations = 0;
+  double wall_time_s = 0.0;
+  double cost = 0.0;  // ½ Σ weighted residual²
+  int residuals = 0;
+  int fitted_quantities = 0;
+  double noise_scale = 1.0;  // sqrt(2 cost / (N − P)); ≈ 1 when the noise estimates are right
+  double reciprocal_condition = 0.0;  // of the column-scaled Jacobian
+  std::string BriefReport() const;
+};
+
+struct FitResult {
+  std::vector<ParameterEstimate> parameters;
+  std::vector<ChannelEstimate> channels;  // record by record, channels in config order
+  // Parameters, then gain.<col>, offset.<col> (with @<record label> when there are several).
+  std::vector<std::string> quantity_names;
+  Eigen::MatrixXd correlation;  // over quantity_names
+  std::vector<LocalMinimum> minima;
+  // Per record: the record time (s) that is the model's t = 0 (TimeOrigin). The window, traces and
+  // plots are in record time; bite_time and the scene's torque times count from the origin.
+  std::vector<double> time_origins_s;
+  FitSummary summary;
+};
+
+// Fits `config` to the records starting from `scene` (with [set] values already applied). Each
+// record is a separate run of the scene (another bite of the same line): the scene parameters
+// are shared, a per-record parameter (bite_time by default) and every channel's gain and offset
+// are fitted per record. Throws InputError for bad options; a fit that fails (every start fails
+// to simulate, Ceres reports failure) has summary.success = false and a message.
+FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& records,
+              const FitConfig& config, const FitOptions& options);
+FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const FitConfig& config,
+              const FitOptions& options);
+
+// Cramér–Rao bound of the free scene parameters (physical units, in config order) for a record
+// with white noise of the given standard deviation per channel (N·m), at the values in `scene`
+// (gains 1, offsets 0): sqrt(diag((JᵀJ)⁻¹)) with the noise-weighted central-difference Jacobian
+// over the scene parameters, gains and offsets. NaN when J is rank-deficient. Throws
+// InputError when the scene does not simulate.
+std::vector<double> CramerRaoBound(const driveline::Scene& scene, const Oscillogram& record,
+                                   const FitConfig& config, const std::vector<double>& noise_Nm,
+                                   const FitOptions& options);
+
+// The record time that is the model's time zero: [fit] time_origin, else the record's first
+// sample (a logger's absolute time fits like a record that starts at 0).
+double TimeOrigin(const FitConfig& config, const Oscillogram& record);
+
+// Simulated torque of each channel's link at the record times in [begin, end), the model's time
+// being record time − origin_s; the scene's parameters as given. Returns false with a reason when
+// the scene is invalid or the solver fails.
+bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, double origin_s,
+                      const std::vector<ChannelSpec>& channels, int begin, int end,
+                      std::vector<Eigen::VectorXd>* torques, std::string* why);
+
+}  // namespace millkit::identify

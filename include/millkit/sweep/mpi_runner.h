@@ -1,0 +1,49 @@
+// Sweeps across machines with MPI (issue 5): `mpirun -np N millkit sweep …` splits the cases over
+// the ranks and gathers the results on rank 0, which alone writes the outputs. Case i runs on
+// rank i mod N (cyclic: neighbouring cases, often alike in cost, spread over the ranks), each
+// rank on its own thread pool; the results travel as raw bytes, so the rows are bitwise those of
+// a serial run.
+//
+// MPI is optional at build time (CMake option MILLKIT_WITH_MPI, OpenMPI from Debian). MPI is
+// initialised only when the program was started by mpirun (OMPI_COMM_WORLD_SIZE or PMI_SIZE in the
+// environment); otherwise everything runs in this process. A program built
+// without MPI but started by mpirun with more than one rank refuses to run (InputError), rather
+// than have every rank run every case.
+//
+// No hang on failure: after the local run every rank reports success or failure in a collective
+// before any data moves; if any rank failed, every rank throws.
+#pragma once
+
+#include <vector>
+
+#include "millkit/sweep/sweep_runner.h"
+
+namespace millkit::sweep {
+
+class MpiSession {
+ public:
+  // Initialises MPI when built with it and started by mpirun; else a single-process session.
+  MpiSession();
+  ~MpiSession();  // MPI_Finalize when this session initialised MPI
+  MpiSession(const MpiSession&) = delete;
+  MpiSession& operator=(const MpiSession&) = delete;
+
+  int rank() const { return rank_; }
+  int size() const { return size_; }
+  bool root() const { return rank_ == 0; }
+  static bool BuiltWithMpi();
+
+ private:
+  int rank_ = 0;
+  int size_ = 1;
+  bool initialised_ = false;
+};
+
+// RunCases over all ranks. On rank 0: every case's result in case order, and `summary` for the
+// whole run (cases, failures, this rank's threads, wall time to the gathered result). On other
+// ranks: an empty vector. A single-process session is RunCases itself.
+std::vector<CaseResult> RunCasesDistributed(const MpiSession& session, const CaseFunction& evaluate,
+                                            const CaseList& cases, const RunnerOptions& options,
+                                            RunnerSummary* summary = nullptr);
+
+}  // namespace millkit::sweep
