@@ -6,9 +6,8 @@
 // few vectors are needed (event location).
 #pragma once
 
-#include <cmath>
-
 #include <Eigen/Dense>
+#include <cmath>
 
 namespace millkit::numerics {
 

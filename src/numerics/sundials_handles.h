@@ -23,7 +23,8 @@ class SundialsHandle {
   ~SundialsHandle() {
     if (handle_ != nullptr) Free(&handle_);
   }
-  SundialsHandle(SundialsHandle&& other) noexcept : handle_(std::exchange(other.handle_, nullptr)) {}
+  SundialsHandle(SundialsHandle&& other) noexcept
+      : handle_(std::exchange(other.handle_, nullptr)) {}
   SundialsHandle& operator=(SundialsHandle&& other) noexcept {
     if (this != &other) {
       if (handle_ != nullptr) Free(&handle_);

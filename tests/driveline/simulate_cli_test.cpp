@@ -1,6 +1,5 @@
 // `millkit simulate` end to end: output format, exit codes, no partial files.
 #include <catch2/catch.hpp>
-
 #include <sstream>
 #include <string>
 #include <vector>
@@ -24,8 +23,9 @@ TEST_CASE("simulate writes the CSV columns of the issue and prints the Kd table"
 
 TEST_CASE("simulate with the CVODE solver gives the same table", "[cli]") {
   ScratchDir dir;
-  const auto run = RunMillkit("simulate '" + SourcePath("datasets/scenes/two_mass_step.toml") +
-                              "' --out '" + (dir / "r.csv").string() + "' --solver cvode --rtol 1e-10");
+  const auto run =
+      RunMillkit("simulate '" + SourcePath("datasets/scenes/two_mass_step.toml") + "' --out '" +
+                 (dir / "r.csv").string() + "' --solver cvode --rtol 1e-10");
   REQUIRE(run.exit_code == 0);
   CHECK_THAT(run.stdout_text, Contains("2.000"));
   CHECK_THAT(run.stderr_text, Contains("cvode: success"));
@@ -33,8 +33,9 @@ TEST_CASE("simulate with the CVODE solver gives the same table", "[cli]") {
 
 TEST_CASE("simulate on a bad scene exits 2 naming the key and leaves no file", "[cli][bad_input]") {
   ScratchDir dir;
-  WriteText(dir / "bad.toml", "[scene]\nduration = 0.1\nsample_rate = 100\n[[mass]]\n"
-                              "name = \"a\"\ninertia = -1\n");
+  WriteText(dir / "bad.toml",
+            "[scene]\nduration = 0.1\nsample_rate = 100\n[[mass]]\n"
+            "name = \"a\"\ninertia = -1\n");
   const auto run = RunMillkit("simulate '" + (dir / "bad.toml").string() + "' --out '" +
                               (dir / "out.csv").string() + "'");
   CHECK(run.exit_code == 2);
@@ -42,7 +43,8 @@ TEST_CASE("simulate on a bad scene exits 2 naming the key and leaves no file", "
   CHECK(dir.EntryCount() == 1);  // only bad.toml
 }
 
-TEST_CASE("simulate rejects an unknown solver and a bad tolerance with exit 2", "[cli][bad_input]") {
+TEST_CASE("simulate rejects an unknown solver and a bad tolerance with exit 2",
+          "[cli][bad_input]") {
   ScratchDir dir;
   const std::string scene = "'" + SourcePath("datasets/scenes/two_mass_step.toml") + "'";
   const std::string out = " --out '" + (dir / "r.csv").string() + "'";

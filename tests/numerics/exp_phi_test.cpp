@@ -1,11 +1,9 @@
 // numerics/exp_phi.h: S = exp(Aτ) and Φ = ∫₀^τ exp(As) ds against Eigen's matrix exponential.
-#include <catch2/catch.hpp>
-
-#include <random>
-
-#include <unsupported/Eigen/MatrixFunctions>
-
 #include "numerics/exp_phi.h"
+
+#include <catch2/catch.hpp>
+#include <random>
+#include <unsupported/Eigen/MatrixFunctions>
 
 using millkit::numerics::ExpAndPhi1;
 

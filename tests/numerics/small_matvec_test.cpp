@@ -1,11 +1,10 @@
 // numerics/small_matvec.h against Eigen's products.
-#include <catch2/catch.hpp>
+#include "numerics/small_matvec.h"
 
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <limits>
 #include <random>
-
-#include "numerics/small_matvec.h"
 
 using millkit::numerics::MaxAbsPadded;
 using millkit::numerics::Multiply;
@@ -54,8 +53,7 @@ TEST_CASE("The small matrix product equals Eigen's", "[numerics]") {
   CHECK((c - a * b).cwiseAbs().maxCoeff() <= kProductTolerance);
 }
 
-TEST_CASE("MaxAbsPadded finds the largest magnitude and flags non-finite entries",
-          "[numerics]") {
+TEST_CASE("MaxAbsPadded finds the largest magnitude and flags non-finite entries", "[numerics]") {
   std::vector<double> x = {0.5, -3.0, 2.0, 0.0, 1.0, -2.5, 0.25, 0.0};
   CHECK(MaxAbsPadded(x.data(), 8) == 3.0);
   CHECK(MaxAbsPadded(x.data(), 4) == 3.0);
