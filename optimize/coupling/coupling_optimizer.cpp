@@ -32,8 +32,7 @@ void ScoreConstraints(const driveline::Scene& scene, const CouplingProblem& prob
   point->twist_rad.clear();
   for (const auto& limit : problem.twist_limits) {
     const driveline::Link& link = scene.links[limit.link];
-    const double twist =
-        0.5 * link.backlash_rad + limit.rated_torque_Nm / link.stiffness_Nm_per_rad;
+    const double twist = driveline::QuasiStaticTwist(link, limit.rated_torque_Nm);
     point->twist_rad.push_back(twist);
     point->violation += std::max(0.0, twist / limit.max_twist_rad - 1.0);
   }
@@ -207,7 +206,7 @@ std::pair<std::vector<double>, std::vector<double>> EffectiveBounds(
       if (p.kind == SceneParameter::Kind::kStiffness && p.index == limit.link) variable = int(i);
     }
     if (variable < 0) {
-      const double twist = half_gap + limit.rated_torque_Nm / link.stiffness_Nm_per_rad;
+      const double twist = driveline::QuasiStaticTwist(link, limit.rated_torque_Nm);
       if (twist > limit.max_twist_rad) {
         throw InputError(what + "the static twist is " + FormatNumber(twist) + " rad > max_twist " +
                          FormatNumber(limit.max_twist_rad) +

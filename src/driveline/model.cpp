@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "io/toml_section.h"
+#include "millkit/driveline/natural_frequencies.h"
 #include "millkit/io/input_error.h"
 
 namespace millkit::driveline {
@@ -51,9 +52,10 @@ std::vector<int> ToSideMasses(const Scene& scene, int link) {
 }
 
 double TwistFromTorque(const Link& link, double torque, double load_scale) {
-  const double half = 0.5 * link.backlash_rad;
-  if (std::abs(torque) <= kNoStaticTorque * load_scale) return link.gap_position * half;
-  return (torque > 0.0 ? half : -half) + torque / link.stiffness_Nm_per_rad;
+  if (std::abs(torque) <= kNoStaticTorque * load_scale) {
+    return link.gap_position * 0.5 * link.backlash_rad;
+  }
+  return (torque > 0.0 ? 1.0 : -1.0) * QuasiStaticTwist(link, torque);
 }
 
 }  // namespace
@@ -153,35 +155,8 @@ Reduction ReduceToBand(const Scene& scene) {
 }
 
 double HighestModeHz(const Scene& scene, const Reduction& reduction) {
-  const int groups =
-      1 + *std::max_element(reduction.group_of_mass.begin(), reduction.group_of_mass.end());
-  if (groups < 2) return 0.0;
-  Eigen::VectorXd inertia = Eigen::VectorXd::Zero(groups);
-  for (size_t i = 0; i < scene.masses.size(); ++i) {
-    inertia[reduction.group_of_mass[i]] += scene.masses[i].inertia_kg_m2;
-  }
-  Eigen::MatrixXd k = Eigen::MatrixXd::Zero(groups, groups);
-  for (size_t l = 0; l < scene.links.size(); ++l) {
-    if (reduction.link_rigid[l]) continue;
-    const Link& link = scene.links[l];
-    const bool doubled = scene.contact == ContactLaw::kLimited && link.backlash_rad > 0.0;
-    const double c = link.stiffness_Nm_per_rad * (doubled ? 2.0 : 1.0);
-    const int a = reduction.group_of_mass[link.from], b = reduction.group_of_mass[link.to];
-    k(a, a) += c;
-    k(b, b) += c;
-    k(a, b) -= c;
-    k(b, a) -= c;
-  }
-  const Eigen::VectorXd inv_sqrt = inertia.cwiseSqrt().cwiseInverse();
-  const Eigen::MatrixXd scaled = inv_sqrt.asDiagonal() * k * inv_sqrt.asDiagonal();
-  // c/J past the double range (c = 1e300 on J = 1e-10) has no frequency: +inf, never a 0 that
-  // would pass the sample-rate rule.
-  if (!scaled.allFinite()) return std::numeric_limits<double>::infinity();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(scaled, Eigen::EigenvaluesOnly);
-  if (eigen.info() != Eigen::Success || !eigen.eigenvalues().allFinite()) {
-    return std::numeric_limits<double>::infinity();
-  }
-  return std::sqrt(std::max(0.0, eigen.eigenvalues().maxCoeff())) / (2.0 * kPi);
+  const std::vector<double> hz = ModalFrequenciesHz(scene, reduction, GapStiffness::kStiffestPiece);
+  return hz.size() < 2 ? 0.0 : hz.back();
 }
 
 void CheckSampleRate(const Scene& user_scene) {
@@ -716,8 +691,7 @@ Eigen::VectorXd Model::ComputeStateScale() const {
     // The twist that balances the speed scale in the link's own mode (ψ' = Δω, Δω' ~ c ψ / J):
     // with it the scaled system matrix has entries near that mode's frequency.
     const double omega_link = std::sqrt(link.stiffness_Nm_per_rad * (1.0 / ja + 1.0 / jb));
-    const double twist = 0.5 * link.backlash_rad +
-                         std::abs(final_torque[flexible_links_[f]]) / link.stiffness_Nm_per_rad;
+    const double twist = QuasiStaticTwist(link, final_torque[flexible_links_[f]]);
     scale[f] = std::max({twist, std::abs(z0[f]), speed / omega_link});
   }
   for (int g = 0; g < group_count(); ++g) scale[SpeedIndex(g)] = speed;

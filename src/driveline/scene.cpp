@@ -267,6 +267,10 @@ void ValidateScene(const Scene& scene) {
   CheckSampleRate(scene);
 }
 
+double QuasiStaticTwist(const Link& link, double torque_Nm) {
+  return 0.5 * link.backlash_rad + std::abs(torque_Nm) / link.stiffness_Nm_per_rad;
+}
+
 ShaftFactors ComputeShaftFactors(const Scene& scene) {
   const int n = static_cast<int>(scene.masses.size());
   ShaftFactors factors;

@@ -84,6 +84,10 @@ struct Scene {
   int SampleCount() const;
 };
 
+// The twist (rad) of a link carrying a steady torque T with its gap closed on the loaded flank:
+// b/2 + |T|/c (its magnitude; the sign is the torque's).
+double QuasiStaticTwist(const Link& link, double torque_Nm);
+
 // Shaft factors of a scene with gear ratios: k of a mass is the product of the ratios of the links
 // it lies beyond (on whose `from` side it is), 1 on the reference shaft; k of a link is that of its
 // `to` mass (a link's own quantities are in its `to`-side units). A quantity in an object's units
