@@ -13,10 +13,10 @@
 #include "identify/record_noise.h"
 #include "identify/uncertainty.h"
 #include "identify/verdict.h"
-#include "io/toml_section.h"
 #include "millkit/driveline/model.h"
 #include "millkit/driveline/simulation.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::identify {
 

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
-#include "io/toml_section.h"
+#include "millkit/io/number_format.h"
 #include "millkit/io/svg_plot.h"
 
 namespace millkit::identify {

@@ -3,11 +3,11 @@
 #include <algorithm>
 #include <cctype>
 
-#include "io/toml_section.h"
 #include "millkit/identify/comtrade.h"
 #include "millkit/identify/mat_record.h"
 #include "millkit/io/csv.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::identify {
 namespace {

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <limits>
 
-#include "io/toml_section.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::identify {
 namespace {

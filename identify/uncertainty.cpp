@@ -5,7 +5,7 @@
 #include <limits>
 #include <random>
 
-#include "io/toml_section.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::identify {
 namespace {

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "io/toml_section.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::identify {
 

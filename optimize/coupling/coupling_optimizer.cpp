@@ -7,9 +7,9 @@
 #include <exception>
 #include <limits>
 
-#include "io/toml_section.h"
 #include "millkit/driveline/natural_frequencies.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/number_format.h"
 #include "millkit/sweep/sweep_runner.h"
 
 namespace millkit::coupling {

@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
-#include "io/toml_section.h"
+#include "millkit/io/number_format.h"
 #include "millkit/sweep/sweep_table.h"
 
 namespace millkit::coupling {

@@ -10,8 +10,8 @@
 #include <numbers>
 #include <vector>
 
-#include "io/toml_section.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::leveller {
 namespace {

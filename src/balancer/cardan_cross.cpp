@@ -4,7 +4,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "io/toml_section.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::balancer {
 namespace {

@@ -162,12 +162,6 @@ nlohmann::json ToJson(const bal::BalancerInput& input, const bal::BalancerResult
   return j;
 }
 
-std::string Fixed(double value, int decimals) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof(buffer), "%.*f", decimals, value);
-  return buffer;
-}
-
 void PrintTable(std::ostream& out, const bal::BalancerInput& input, const bal::BalancerResult& r) {
   auto row = [&out](const std::string& name, const std::string& value, const std::string& unit) {
     char buffer[160];
@@ -178,51 +172,52 @@ void PrintTable(std::ostream& out, const bal::BalancerInput& input, const bal::B
   auto verdict = [](bool passes) { return passes ? std::string("passes") : std::string("FAILS"); };
   out << "Spindle balancing device (docs/balancer.md, seed 002)\n";
   out << "Roller support\n";
-  row("beta = arctan(lp/D), exact", Fixed(r.support.beta_exact_rad * kDegPerRad, 3), "deg");
-  row("beta as used", Fixed(r.support.beta_rad * kDegPerRad, 3), "deg");
-  row("P1 = Q / (4 cos(alpha + 2 beta))", Fixed(r.support.p1_N, 1), "N");
-  row("P2 = Q / (4 cos alpha)", Fixed(r.support.p2_N, 1), "N");
+  row("beta = arctan(lp/D), exact", FixedNumber(r.support.beta_exact_rad * kDegPerRad, 3), "deg");
+  row("beta as used", FixedNumber(r.support.beta_rad * kDegPerRad, 3), "deg");
+  row("P1 = Q / (4 cos(alpha + 2 beta))", FixedNumber(r.support.p1_N, 1), "N");
+  row("P2 = Q / (4 cos alpha)", FixedNumber(r.support.p2_N, 1), "N");
   out << "Roller (beam, load P1 over 2b)\n";
-  row("q = P1 / (2b)", Fixed(r.roller.q_N_per_m, 1), "N/m");
-  row("N1 = N2", Fixed(r.roller.n1_N, 1), "N");
-  row("M(x1 = " + Fixed(input.roller.support_offset_m * 1e3, 1) + " mm)",
-      Fixed(r.roller.moment_at_load_start_Nm, 1), "N*m");
+  row("q = P1 / (2b)", FixedNumber(r.roller.q_N_per_m, 1), "N/m");
+  row("N1 = N2", FixedNumber(r.roller.n1_N, 1), "N");
+  row("M(x1 = " + FixedNumber(input.roller.support_offset_m * 1e3, 1) + " mm)",
+      FixedNumber(r.roller.moment_at_load_start_Nm, 1), "N*m");
   row("M(x2 = " +
-          Fixed((input.roller.support_offset_m + input.roller.half_loaded_length_m) * 1e3, 1) +
+          FixedNumber((input.roller.support_offset_m + input.roller.half_loaded_length_m) * 1e3,
+                      1) +
           " mm), maximum",
-      Fixed(r.roller.moment_at_middle_Nm, 1), "N*m");
+      FixedNumber(r.roller.moment_at_middle_Nm, 1), "N*m");
   out << "Roller contact\n";
-  row("Pr = (G + Q) / n", Fixed(r.contact.roller_load_N, 1), "N");
-  row("Pv = k gamma Pr", Fixed(r.contact.design_load_N, 1), "N");
-  row("sigma = 0.418 sqrt(Pv E / (b r))", Fixed(r.contact.stress_Pa / 1e6, 1), "MPa");
-  row("allowable [sigma]", Fixed(r.contact.allowable_Pa / 1e6, 1),
+  row("Pr = (G + Q) / n", FixedNumber(r.contact.roller_load_N, 1), "N");
+  row("Pv = k gamma Pr", FixedNumber(r.contact.design_load_N, 1), "N");
+  row("sigma = 0.418 sqrt(Pv E / (b r))", FixedNumber(r.contact.stress_Pa / 1e6, 1), "MPa");
+  row("allowable [sigma]", FixedNumber(r.contact.allowable_Pa / 1e6, 1),
       "MPa  " + verdict(r.contact.passes));
   out << "Roller axle\n";
-  row("Pp = Q / (2 cos(alpha + beta))", Fixed(r.axle.pp_N, 1), "N");
-  row("N3 = N4 = Pp / 2", Fixed(r.axle.n3_N, 1), "N");
-  row("RA", Fixed(r.axle.ra_N, 1), "N");
-  row("RB", Fixed(r.axle.rb_N, 1), "N");
-  row("M = N3 a", Fixed(r.axle.moment_Nm, 1), "N*m");
+  row("Pp = Q / (2 cos(alpha + beta))", FixedNumber(r.axle.pp_N, 1), "N");
+  row("N3 = N4 = Pp / 2", FixedNumber(r.axle.n3_N, 1), "N");
+  row("RA", FixedNumber(r.axle.ra_N, 1), "N");
+  row("RB", FixedNumber(r.axle.rb_N, 1), "N");
+  row("M = N3 a", FixedNumber(r.axle.moment_Nm, 1), "N*m");
   out << "Cardan cross pin\n";
-  row("N = G / 2", Fixed(r.cross.reaction_N, 1), "N");
-  row("M = N a", Fixed(r.cross.moment_Nm, 2), "N*m");
-  row("S = S1 S2 S3", Fixed(r.cross.safety_factor, 3), "");
-  row("[sigma] = sigma_u / S", Fixed(r.cross.allowable_stress_Pa / 1e6, 1), "MPa");
-  row("d_min = cbrt(M / (0.1 [sigma]))", Fixed(r.cross.min_diameter_m * 1e3, 1), "mm");
-  row("stress at adopted d = " + Fixed(input.cross.pin_diameter_m * 1e3, 1) + " mm",
-      Fixed(r.cross.stress_at_adopted_Pa / 1e6, 1),
+  row("N = G / 2", FixedNumber(r.cross.reaction_N, 1), "N");
+  row("M = N a", FixedNumber(r.cross.moment_Nm, 2), "N*m");
+  row("S = S1 S2 S3", FixedNumber(r.cross.safety_factor, 3), "");
+  row("[sigma] = sigma_u / S", FixedNumber(r.cross.allowable_stress_Pa / 1e6, 1), "MPa");
+  row("d_min = cbrt(M / (0.1 [sigma]))", FixedNumber(r.cross.min_diameter_m * 1e3, 1), "mm");
+  row("stress at adopted d = " + FixedNumber(input.cross.pin_diameter_m * 1e3, 1) + " mm",
+      FixedNumber(r.cross.stress_at_adopted_Pa / 1e6, 1),
       "MPa  " + verdict(r.cross.adopted_diameter_passes));
   out << "Balancing and idle gaps (seed 000)\n";
-  row("balancing force", Fixed(input.balance.balancing_force_N, 1), "N");
-  row("force for exact balance", Fixed(input.balance.required_force_N, 1), "N");
+  row("balancing force", FixedNumber(input.balance.balancing_force_N, 1), "N");
+  row("force for exact balance", FixedNumber(input.balance.required_force_N, 1), "N");
   row(r.gaps.imbalance_percent >= 0.0 ? "over-balance" : "under-balance",
-      Fixed(r.gaps.imbalance_percent, 2), "%");
+      FixedNumber(r.gaps.imbalance_percent, 2), "%");
   const char* gap_note = r.gaps.state == bal::IdleGapState::kClosed ? "(taken up)"
                          : r.gaps.state == bal::IdleGapState::kOpen
                              ? "(open at every angle)"
                              : "(open and close as the hinge turns)";
   row("hinge gaps at idle", std::string(bal::ToString(r.gaps.state)), gap_note);
-  row("gap_position for the scene's [[link]]", Fixed(r.gaps.gap_position, 3), "");
+  row("gap_position for the scene's [[link]]", FixedNumber(r.gaps.gap_position, 3), "");
 }
 
 }  // namespace

@@ -10,7 +10,8 @@ namespace millkit::cli {
 void AddSimulateCommand(CLI::App& app);
 void AddLevellerCommand(CLI::App& app);
 void AddBalancerCommand(CLI::App& app);
-void AddIdentifyCommand(CLI::App& app);  // and `synthesize`
+void AddIdentifyCommand(CLI::App& app);
+void AddSynthesizeCommand(CLI::App& app);
 void AddCouplingCommand(CLI::App& app);
 void AddSweepCommand(CLI::App& app);
 

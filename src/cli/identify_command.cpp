@@ -1,6 +1,5 @@
 // millkit identify SCENE.toml --data record.csv [--data record2.csv ...] [--config fit.toml]
 //                  --out fit.json [--plot fit.svg] [--trace fit.csv]
-// millkit synthesize SCENE.toml --spec record.toml --out record.csv
 #include <glog/logging.h>
 
 #include <iomanip>
@@ -11,15 +10,14 @@
 #include <vector>
 
 #include "cli/commands.h"
-#include "io/toml_section.h"
 #include "millkit/driveline/scene.h"
 #include "millkit/identify/fit.h"
 #include "millkit/identify/fit_config.h"
 #include "millkit/identify/fit_report.h"
 #include "millkit/identify/oscillogram.h"
-#include "millkit/identify/record_generator.h"
 #include "millkit/io/atomic_file.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/number_format.h"
 #include "millkit/io/output_files.h"
 #include "millkit/io/progress_line.h"
 
@@ -130,31 +128,6 @@ void RunIdentify(const IdentifyArgs& args) {
   if (result.summary.verdict != "ok") throw NotTrusted("identify");
 }
 
-struct SynthesizeArgs {
-  std::string scene;
-  std::string spec;
-  std::string out;
-  bool quiet = false;
-};
-
-void RunSynthesize(const SynthesizeArgs& args) {
-  CheckOutputPaths({{"--out", args.out}}, {args.scene, args.spec});
-  AtomicFile file(args.out);
-  driveline::Scene scene = driveline::LoadScene(args.scene);
-  const auto spec = identify::LoadRecordSpec(args.spec, &scene);
-  ProgressLine progress(args.quiet ? nullptr : &std::cerr, "synthesize");
-  const double duration_s =
-      spec.defects.duration_s > 0.0 ? spec.defects.duration_s : scene.duration_s;
-  const auto record = identify::GenerateRecord(scene, spec, [&](double fraction) {
-    if (!progress.Due()) return;
-    progress.Update(std::to_string(static_cast<int>(100.0 * fraction)) + " % of " +
-                    FormatNumber(duration_s) + " s simulated");
-  });
-  progress.Finish();
-  file.stream() << identify::FormatOscillogram(record);
-  file.Commit();
-}
-
 }  // namespace
 
 void AddIdentifyCommand(CLI::App& app) {
@@ -185,18 +158,6 @@ void AddIdentifyCommand(CLI::App& app) {
   command->add_option("--trace", args->trace, "CSV of measured, fitted and residual per channel");
   command->add_flag("--quiet", args->quiet, "No progress line on stderr");
   command->callback([args] { RunIdentify(*args); });
-
-  auto synth = std::make_shared<SynthesizeArgs>();
-  auto* generator = app.add_subcommand(
-      "synthesize",
-      "Make a synthetic oscillogram from a scene and a record spec (true parameters, noise, "
-      "gain, offset, quantisation, anti-alias filter)");
-  generator->add_option("scene", synth->scene, "Scene TOML file")->required();
-  generator->add_option("--spec", synth->spec, "Record spec TOML ([record], [truth], [[channel]])")
-      ->required();
-  generator->add_option("--out", synth->out, "Record CSV (written atomically)")->required();
-  generator->add_flag("--quiet", synth->quiet, "No progress line on stderr");
-  generator->callback([synth] { RunSynthesize(*synth); });
 }
 
 }  // namespace millkit::cli

@@ -11,10 +11,10 @@
 #include <vector>
 
 #include "cli/commands.h"
-#include "io/toml_section.h"
 #include "millkit/io/atomic_file.h"
 #include "millkit/io/csv.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/number_format.h"
 #include "millkit/io/output_files.h"
 #include "millkit/leveller/leveller_config.h"
 #include "millkit/leveller/linkage.h"
@@ -27,12 +27,9 @@ namespace {
 
 using namespace millkit::leveller;
 
-// Cells keep 1e-12 mm / 1e-12 deg: enough to carry the 1e-9 mm inverse accuracy through a file.
-std::string Cell(double value) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof(buffer), "%.15g", value);
-  return buffer;
-}
+// Cells keep 15 significant digits (1e-12 mm / 1e-12 deg): enough to carry the 1e-9 mm inverse
+// accuracy through a file.
+std::string Cell(double value) { return ShortNumber(value, 15); }
 
 LevellerConfig LoadConfig(const std::string& path) {
   return path.empty() ? DefaultLevellerConfig() : LoadLevellerConfig(path);

@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   millkit::cli::AddLevellerCommand(app);
   millkit::cli::AddBalancerCommand(app);
   millkit::cli::AddIdentifyCommand(app);
+  millkit::cli::AddSynthesizeCommand(app);
   millkit::cli::AddCouplingCommand(app);
   millkit::cli::AddSweepCommand(app);
   try {

@@ -5,11 +5,11 @@
 #include <optional>
 
 #include "cli/commands.h"
-#include "io/toml_section.h"
 #include "millkit/driveline/result_csv.h"
 #include "millkit/driveline/simulation.h"
 #include "millkit/io/atomic_file.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/number_format.h"
 #include "millkit/io/output_files.h"
 #include "millkit/io/progress_line.h"
 

@@ -43,8 +43,8 @@
 #include <unordered_map>
 
 #include "driveline/output_recorder.h"
-#include "io/toml_section.h"
 #include "millkit/driveline/simulation.h"
+#include "millkit/io/number_format.h"
 #include "numerics/exp_phi.h"
 #include "numerics/small_matvec.h"
 

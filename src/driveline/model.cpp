@@ -8,9 +8,9 @@
 #include <numeric>
 #include <sstream>
 
-#include "io/toml_section.h"
 #include "millkit/driveline/natural_frequencies.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::driveline {
 namespace {

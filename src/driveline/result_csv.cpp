@@ -3,8 +3,8 @@
 #include <cmath>
 #include <cstdio>
 
-#include "io/toml_section.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::driveline {
 

@@ -5,8 +5,8 @@
 #include <limits>
 #include <sstream>
 
-#include "io/toml_section.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::driveline {
 

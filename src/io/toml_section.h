@@ -12,6 +12,8 @@
 #include <string_view>
 #include <vector>
 
+#include "millkit/io/number_format.h"
+
 namespace millkit {
 
 // Parses a TOML file; a syntax error is an InputError naming file, line and column.
@@ -61,17 +63,5 @@ class TomlSection {
   std::string file_;
   std::string where_;
 };
-
-// Number formatting for messages: shortest round-trip representation.
-std::string FormatNumber(double value);
-// `digits` significant digits, for messages and reports (3 by default).
-std::string ShortNumber(double value, int digits = 3);
-// A value and its standard error with the digits the error supports: the error to two significant
-// digits, the value rounded to the same place ("12346 ± 49", "0.02351 ± 0.00021"), with a shared
-// exponent beyond 10^-3 … 10^5 ("(1.1512 ± 0.0034)e7"). When the standard error is not finite and
-// positive: the value alone to `digits` significant digits (ShortNumber).
-std::string ValueWithError(double value, double standard_error, int digits = 4);
-// Appends the same shortest round-trip text to `text` without a temporary (CSV writers).
-void AppendNumber(double value, std::string* text);
 
 }  // namespace millkit

@@ -5,24 +5,14 @@
 #include <cstdio>
 #include <limits>
 
-#include "io/toml_section.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::leveller {
 namespace {
 
-std::string Cell(double value) {
-  if (!std::isfinite(value)) return "nan";
-  char buffer[64];
-  std::snprintf(buffer, sizeof(buffer), "%.10g", value);
-  return buffer;
-}
-
-std::string Fixed(double value, int digits) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof(buffer), "%.*f", digits, value);
-  return buffer;
-}
+// Setpoint cells: 10 significant digits; "nan" for anything not finite.
+std::string Cell(double value) { return std::isfinite(value) ? ShortNumber(value, 10) : "nan"; }
 
 }  // namespace
 
@@ -98,14 +88,14 @@ std::vector<TableRow> ComputeSetpointTable(const std::vector<StripCase>& cases,
     for (int k = 0; k < 3; ++k) {
       if (s.intermesh_mm[k] > s.collision_limit_mm) {
         row.warnings.push_back("roll collision: Y" + std::to_string(k + 1) + " = " +
-                               Fixed(s.intermesh_mm[k], 3) + " mm > limit " +
-                               Fixed(s.collision_limit_mm, 3) + " mm");
+                               FixedNumber(s.intermesh_mm[k], 3) + " mm > limit " +
+                               FixedNumber(s.collision_limit_mm, 3) + " mm");
       }
     }
     row.angles = linkage.InverseClosedForm(s.intermesh_mm[0], s.intermesh_mm[1]);
     if (!row.angles.ok()) {
-      row.warnings.push_back("stroke: Y1 = " + Fixed(s.intermesh_mm[0], 3) +
-                             " mm and Y2 = " + Fixed(s.intermesh_mm[1], 3) +
+      row.warnings.push_back("stroke: Y1 = " + FixedNumber(s.intermesh_mm[0], 3) +
+                             " mm and Y2 = " + FixedNumber(s.intermesh_mm[1], 3) +
                              " mm outside the linkage reach (" + ToString(row.angles.status) + ")");
       row.accuracy_mm = std::numeric_limits<double>::quiet_NaN();
     } else {
@@ -114,7 +104,7 @@ std::vector<TableRow> ComputeSetpointTable(const std::vector<StripCase>& cases,
       row.accuracy_mm = accuracy.max_delta_y_mm;
       if (accuracy.dead_centre_distance_deg < options.dead_centre_warning_deg) {
         row.warnings.push_back("dead centre: eccentric within " +
-                               Fixed(accuracy.dead_centre_distance_deg, 3) + " deg");
+                               FixedNumber(accuracy.dead_centre_distance_deg, 3) + " deg");
       }
     }
     rows.push_back(std::move(row));

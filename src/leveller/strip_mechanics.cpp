@@ -6,8 +6,8 @@
 #include <cmath>
 #include <limits>
 
-#include "io/toml_section.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::leveller {
 namespace {

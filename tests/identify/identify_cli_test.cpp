@@ -7,10 +7,10 @@
 #include <vector>
 
 #include "identify/fit_fixture.h"
-#include "io/toml_section.h"
 #include "millkit/driveline/scene.h"
 #include "millkit/identify/oscillogram.h"
 #include "millkit/identify/record_generator.h"
+#include "millkit/io/number_format.h"
 #include "support/run_cli.h"
 
 using Catch::Matchers::Contains;
