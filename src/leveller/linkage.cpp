@@ -3,9 +3,9 @@
 #include <ceres/jet.h>
 
 #include <algorithm>
-#include <cassert>
 #include <numbers>
 
+#include "io/invariant.h"
 #include "millkit/io/input_error.h"
 
 namespace millkit::leveller {
@@ -222,7 +222,7 @@ Eigen::Matrix<double, 3, 2> Linkage::Jacobian(double beta1_deg, double beta2_deg
   const Jet b2(beta2_deg, 1);
   Intermesh<Jet> y;
   const bool assembled = Forward(b1, b2, &y);
-  assert(assembled && "Jacobian: the linkage does not assemble at this pose");
+  MILLKIT_CHECK(assembled, "Jacobian: the linkage does not assemble at this pose");
   (void)assembled;
   Eigen::Matrix<double, 3, 2> jacobian;
   jacobian.row(0) = y.y1.v.transpose();

@@ -2,10 +2,10 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
-#include <cassert>
 #include <cmath>
 #include <limits>
 
+#include "io/invariant.h"
 #include "millkit/io/input_error.h"
 #include "millkit/io/number_format.h"
 
@@ -68,7 +68,7 @@ void MasingSection::MoveTo(double target) {
   };
   auto advance = [&](double mb) {
     const double cb = branch_c(mb);
-    assert(std::isfinite(cb) && "MasingSection: moment at or beyond the fully plastic moment");
+    MILLKIT_CHECK(std::isfinite(cb), "MasingSection: moment at or beyond the fully plastic moment");
     work_ += mb * cb - m_ * c_ - branch_integral(m_, mb);  // ∫ m dC = [m C] − ∫ C dm
     m_ = mb;
     c_ = cb;
@@ -96,7 +96,7 @@ double MasingSection::CurvatureAt(double moment_ratio) const {
 
 StripPass SimulateStripPass(const Strip& strip, double pitch_mm, const std::array<double, 7>& m,
                             int samples) {
-  assert(samples >= 2 && samples % 2 == 0);
+  MILLKIT_CHECK(samples >= 2 && samples % 2 == 0, "Simpson's rule needs an even sample count");
   const double a = 0.5 * pitch_mm;                                   // mm
   const double kappa_t = ElasticLimitCurvature_per_m(strip) * 1e-3;  // 1/mm
   const double ds = a / samples;

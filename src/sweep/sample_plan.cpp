@@ -1,10 +1,11 @@
 #include "millkit/sweep/sample_plan.h"
 
 #include <algorithm>
-#include <cassert>
 #include <cmath>
 #include <numeric>
 #include <random>
+
+#include "io/invariant.h"
 
 namespace millkit::sweep {
 namespace {
@@ -46,7 +47,7 @@ double SweepDimension::ToUnit(double value) const {
 
 std::vector<double> SweepDimension::GridValues() const {
   if (!values.empty()) return values;
-  assert(points >= 2);
+  MILLKIT_CHECK(points >= 2, "a grid axis needs two points");
   std::vector<double> grid(points);
   for (int i = 0; i < points; ++i) {
     grid[i] = FromUnit(static_cast<double>(i) / static_cast<double>(points - 1));
@@ -74,7 +75,7 @@ CaseList GridCases(const std::vector<SweepDimension>& dimensions) {
 
 CaseList LatinHypercubeCases(const std::vector<SweepDimension>& dimensions, int count,
                              std::uint64_t seed) {
-  assert(count >= 1);
+  MILLKIT_CHECK(count >= 1, "a sample plan needs a case");
   std::mt19937_64 generator(seed);
   CaseList cases(count, std::vector<double>(dimensions.size()));
   std::vector<int> stratum(count);

@@ -167,3 +167,14 @@ TEST_CASE("An invalid entry target is rejected naming the field", "[leveller][st
   REQUIRE_THROWS_WITH(ComputeStripSetpoint(ThinStrip(), MachineData{}, options),
                       Catch::Matchers::Contains("entry_plastic_ratio must be in [0, 1)"));
 }
+
+TEST_CASE("A broken precondition is reported in every build type, not compiled out",
+          "[leveller][strip]") {
+  // An odd sample count breaks Simpson's rule: a bug in the caller, so std::logic_error naming
+  // the invariant (assert would pass silently in the Release build CI runs).
+  const std::array<double, 7> m{0.5, 1.2, 1.1, 1.0, 0.9, 0.8, 0.5};
+  CHECK_THROWS_AS(SimulateStripPass(ThinStrip(), 200.0, m, 401), std::logic_error);
+  CHECK_THROWS_WITH(
+      SimulateStripPass(ThinStrip(), 200.0, m, 401),
+      Catch::Matchers::Contains("Simpson") && Catch::Matchers::Contains("strip_mechanics.cpp"));
+}
