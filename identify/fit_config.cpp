@@ -324,7 +324,7 @@ FitConfig DefaultFitConfig(const driveline::Scene& scene, const std::vector<Osci
   }
   if (config.channels.empty()) {
     throw InputError(record.source + ": no column is named like a link of scene " + scene.file +
-                     "; give a --config with [[channel]] tables");
+                     "; give a fit config with [[channel]] tables");
   }
   const std::string where = "default fit of " + scene.file;
   // scan and per_record follow the rules a [[free]] table gets by default.

@@ -128,9 +128,10 @@ Oscillogram LoadMatRecord(const std::filesystem::path& path, const RecordOptions
   const auto is_time = [&options](const std::string& name) {
     return options.time_column.empty() ? IsTimeColumnName(name) : name == options.time_column;
   };
-  const std::string time_rule = options.time_column.empty()
-                                    ? "named 'time', 't', 'Time' or 'time_s'"
-                                    : "named '" + options.time_column + "' (--time-column)";
+  const std::string time_rule =
+      options.time_column.empty()
+          ? "named 'time', 't', 'Time' or 'time_s'"
+          : "named '" + options.time_column + "' (RecordOptions::time_column)";
   // The scope: the top level when it holds the time vector, else the one struct that does.
   std::vector<Entry> scope;
   for (const auto& v : variables) scope.push_back({v->name ? v->name : "", v.get()});
@@ -169,7 +170,8 @@ Oscillogram LoadMatRecord(const std::filesystem::path& path, const RecordOptions
     if (!is_time(scope[i].name)) continue;
     if (time_entry >= 0) {
       throw InputError(source + ": two time vectors, '" + prefix + scope[time_entry].name +
-                       "' and '" + prefix + scope[i].name + "'; choose one with --time-column");
+                       "' and '" + prefix + scope[i].name +
+                       "'; choose one with RecordOptions::time_column");
     }
     time_entry = static_cast<int>(i);
     const std::string why = NumericVector(*scope[i].variable, &record.time_s);

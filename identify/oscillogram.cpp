@@ -33,7 +33,7 @@ int TimeColumn(const CsvTable& table, const RecordOptions& options) {
       }
     }
     throw InputError(header + ": no column '" + options.time_column +
-                     "' (--time-column); seen: " + SeenColumns(table));
+                     "' (RecordOptions::time_column); seen: " + SeenColumns(table));
   }
   int time_column = -1;
   for (size_t j = 0; j < table.columns.size(); ++j) {
@@ -42,14 +42,15 @@ int TimeColumn(const CsvTable& table, const RecordOptions& options) {
     if (!is_time) continue;
     if (time_column >= 0) {
       throw InputError(header + ": two time columns, '" + table.columns[time_column] + "' and '" +
-                       table.columns[j] + "'; choose one with --time-column");
+                       table.columns[j] + "'; choose one with RecordOptions::time_column");
     }
     time_column = static_cast<int>(j);
   }
   if (time_column < 0) {
-    throw InputError(header + ": no time column; expected one named 'time', 't', 'Time', " +
-                     "'time_s' or 'Time [s]' (in an iba export: the column without a signal " +
-                     "ID), or one chosen with --time-column (seen: " + SeenColumns(table) + ")");
+    throw InputError(
+        header + ": no time column; expected one named 'time', 't', 'Time', " +
+        "'time_s' or 'Time [s]' (in an iba export: the column without a signal " +
+        "ID), or one chosen with RecordOptions::time_column (seen: " + SeenColumns(table) + ")");
   }
   return time_column;
 }
@@ -129,9 +130,10 @@ Oscillogram LoadOscillogram(const std::filesystem::path& path, const RecordOptio
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (extension == ".cfg") {
     if (!options.time_column.empty()) {
-      throw InputError(path.string() +
-                       ": --time-column does not apply to a COMTRADE record (its time comes " +
-                       "from the .cfg's sample rates or the .dat's time stamps)");
+      throw InputError(
+          path.string() +
+          ": RecordOptions::time_column does not apply to a COMTRADE record (its time comes " +
+          "from the .cfg's sample rates or the .dat's time stamps)");
     }
     return LoadComtrade(path);
   }

@@ -4,9 +4,37 @@
 #include <CLI/CLI.hpp>
 #include <exception>
 #include <iostream>
+#include <string>
+#include <utility>
 
 #include "cli/commands.h"
 #include "millkit/io/input_error.h"
+
+namespace {
+
+// Library messages name the options struct field a command line sets from a flag; the user of
+// the command line reads the flag.
+std::string InCommandLineTerms(std::string message) {
+  static const std::pair<const char*, const char*> kFlags[] = {
+      {"SimulationOptions::rtol", "option --rtol"},
+      {"SimulationOptions::atol", "option --atol"},
+      {"RunnerOptions::threads", "option --threads"},
+      {"TableOptions::encoder_deg", "option --encoder-deg"},
+      {"ForcesOptions::shape_factor", "option --shape-factor"},
+      {"ForcesOptions::mw_override_Nm", "option --mw-nm"},
+      {"ForcesOptions::original_curvature_per_m", "option --original-curvature-per-m"},
+      {"RecordOptions::time_column", "--time-column"}};
+  for (const auto& [field, flag] : kFlags) {
+    const std::string key = field;
+    for (auto at = message.find(key); at != std::string::npos; at = message.find(key, at)) {
+      message.replace(at, key.size(), flag);
+      at += std::char_traits<char>::length(flag);
+    }
+  }
+  return message;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"MillKit: rolling-mill drive-line dynamics, identification and leveller setpoints"};
@@ -31,7 +59,7 @@ int main(int argc, char** argv) {
     app.exit(e);
     return 2;
   } catch (const millkit::InputError& e) {
-    std::cerr << "millkit: error: " << e.what() << "\n";
+    std::cerr << "millkit: error: " << InCommandLineTerms(e.what()) << "\n";
     return 2;
   } catch (const millkit::NotTrusted&) {
     return 3;

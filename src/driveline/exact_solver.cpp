@@ -731,7 +731,7 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
                         " (last: " + model_.DescribePhases(phases_) +
                         ", |M| h = " + FormatNumber(data->norm_inf * h_) +
                         "): a switching surface stays within roundoff of zero while the stiff "
-                        "motion moves; try --solver cvode";
+                        "motion moves; try the CVODE solver";
       return false;
     }
     if (++substeps > kMaxStiffSubsteps) {

@@ -12,16 +12,17 @@ namespace millkit::driveline {
 
 void SimulationOptions::Validate() const {
   if (!(rtol >= kMinRtol && rtol <= 1e-2)) {
-    throw InputError("option --rtol: must lie in [1e-14, 1e-2] (got " + FormatNumber(rtol) + ")");
+    throw InputError::Option("SimulationOptions", "rtol",
+                             "must lie in [1e-14, 1e-2] (got " + FormatNumber(rtol) + ")");
   }
   if (atol && !(*atol > 0.0 && *atol <= 1.0)) {
-    throw InputError(
-        "option --atol: must lie in (0, 1], a fraction of each state's typical "
-        "magnitude (got " +
-        FormatNumber(*atol) + ")");
+    throw InputError::Option("SimulationOptions", "atol",
+                             "must lie in (0, 1], a fraction of each state's typical magnitude "
+                             "(got " +
+                                 FormatNumber(*atol) + ")");
   }
-  if (max_steps < 1) throw InputError("option max_steps: must be >= 1");
-  if (max_events < 0) throw InputError("option max_events: must be >= 0");
+  if (max_steps < 1) throw InputError::Option("SimulationOptions", "max_steps", "must be >= 1");
+  if (max_events < 0) throw InputError::Option("SimulationOptions", "max_events", "must be >= 0");
   if (!output_times) return;
   const std::vector<double>& times = *output_times;
   if (times.empty()) throw InputError("option output_times: must not be empty");

@@ -83,14 +83,16 @@ double SeedStraighteningTorque_kNm(double ms_Nm, double kappa_t_per_m, double ka
 
 void ForcesOptions::Validate() const {
   if (!(std::isfinite(shape_factor) && shape_factor >= 1.0)) {
-    throw InputError("--shape-factor must be >= 1 (got " + FormatNumber(shape_factor) + ")");
+    throw InputError::Option("ForcesOptions", "shape_factor",
+                             "must be >= 1 (got " + FormatNumber(shape_factor) + ")");
   }
   if (mw_override_Nm && !(std::isfinite(*mw_override_Nm) && *mw_override_Nm > 0.0)) {
-    throw InputError("--mw-nm must be > 0 (got " + FormatNumber(*mw_override_Nm) + ")");
+    throw InputError::Option("ForcesOptions", "mw_override_Nm",
+                             "must be > 0 (got " + FormatNumber(*mw_override_Nm) + ")");
   }
   if (!(std::isfinite(original_curvature_per_m) && original_curvature_per_m >= 0.0)) {
-    throw InputError("--original-curvature-per-m must be >= 0 (got " +
-                     FormatNumber(original_curvature_per_m) + ")");
+    throw InputError::Option("ForcesOptions", "original_curvature_per_m",
+                             "must be >= 0 (got " + FormatNumber(original_curvature_per_m) + ")");
   }
 }
 

@@ -64,7 +64,8 @@ std::vector<StripCase> ReadStripCases(const CsvTable& table) {
 
 void TableOptions::Validate() const {
   if (!(std::isfinite(encoder_deg) && encoder_deg > 0.0)) {
-    throw InputError("--encoder-deg must be > 0 (got " + FormatNumber(encoder_deg) + ")");
+    throw InputError::Option("TableOptions", "encoder_deg",
+                             "must be > 0 (got " + FormatNumber(encoder_deg) + ")");
   }
   if (!(dead_centre_warning_deg >= 0.0)) {
     throw InputError("dead-centre warning band must be >= 0 deg");

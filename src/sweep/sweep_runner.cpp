@@ -33,8 +33,9 @@ void PrintProgress(std::ostream& out, const std::string& label, int done, int to
 
 void RunnerOptions::Validate() const {
   if (threads < 1 || threads > kMaxThreads) {
-    throw InputError("option --threads: must lie in [1, " + std::to_string(kMaxThreads) +
-                     "] (got " + std::to_string(threads) + ")");
+    throw InputError::Option("RunnerOptions", "threads",
+                             "must lie in [1, " + std::to_string(kMaxThreads) + "] (got " +
+                                 std::to_string(threads) + ")");
   }
 }
 

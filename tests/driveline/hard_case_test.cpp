@@ -181,8 +181,8 @@ TEST_CASE("Ten thousand periods keep the closed-form phase", "[hard]") {
 TEST_CASE("Bad solver options are rejected with the rule", "[hard][bad_input]") {
   SimulationOptions options;
   options.rtol = 1.0;
-  REQUIRE_THROWS_WITH(options.Validate(), Contains("--rtol"));
+  REQUIRE_THROWS_WITH(options.Validate(), Contains("SimulationOptions::rtol"));
   options.rtol = 1e-8;
   options.atol = -1.0;
-  REQUIRE_THROWS_WITH(options.Validate(), Contains("--atol"));
+  REQUIRE_THROWS_WITH(options.Validate(), Contains("SimulationOptions::atol"));
 }

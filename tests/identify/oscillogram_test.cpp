@@ -250,16 +250,18 @@ TEST_CASE("iba signal IDs: analog, digital and text forms, nothing else") {
 TEST_CASE("the option --time-column chooses the time column, and the others become channels") {
   const Oscillogram plain = Plain();
   const std::string text = Rewrite(plain, "Zeit,upper,lower", ',', false);
-  CHECK_THROWS_WITH(ParseOscillogram(text, "z.csv"),
-                    Contains("no time column") && Contains("--time-column") && Contains("Zeit"));
+  CHECK_THROWS_WITH(ParseOscillogram(text, "z.csv"), Contains("no time column") &&
+                                                         Contains("RecordOptions::time_column") &&
+                                                         Contains("Zeit"));
   CheckSame(plain, ParseOscillogram(text, "z.csv", {"Zeit"}));
   CHECK_THROWS_WITH(ParseOscillogram(text, "z.csv", {"time"}),
-                    Contains("z.csv: line 1") && Contains("no column 'time' (--time-column)") &&
+                    Contains("z.csv: line 1") &&
+                        Contains("no column 'time' (RecordOptions::time_column)") &&
                         Contains("seen: Zeit, upper, lower"));
   // Two time-like names: the option settles which one is time; the other is a channel.
   std::string two = "time,t,upper\n";
   for (int k = 0; k < 20; ++k) two += std::to_string(k) + "," + std::to_string(2 * k) + ",1\n";
-  CHECK_THROWS_WITH(ParseOscillogram(two, "two.csv"), Contains("--time-column"));
+  CHECK_THROWS_WITH(ParseOscillogram(two, "two.csv"), Contains("RecordOptions::time_column"));
   const auto chosen = ParseOscillogram(two, "two.csv", {"t"});
   CHECK(chosen.time_s[3] == 6.0);
   CHECK(chosen.channels == std::vector<std::string>{"time", "upper"});
