@@ -9,6 +9,7 @@
 
 #include "cli/commands.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/output_files.h"
 
 namespace {
 
@@ -37,6 +38,8 @@ std::string InCommandLineTerms(std::string message) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Ctrl-C, SIGTERM or SIGHUP in the middle of a run leave no temporary output behind.
+  millkit::InstallTemporaryFileCleanup();
   CLI::App app{"MillKit: rolling-mill drive-line dynamics, identification and leveller setpoints"};
   app.set_version_flag("--version", std::string("millkit ") + MILLKIT_VERSION);
   app.require_subcommand(1);

@@ -21,7 +21,6 @@ AtomicFile::AtomicFile(std::filesystem::path path) : path_(std::move(path)) {
   }
   temp_path_ = target_;
   temp_path_ += ".tmp." + std::to_string(::getpid());
-  InstallTemporaryFileCleanup();
   RegisterTemporaryFile(temp_path_);
   stream_.open(temp_path_, std::ios::out | std::ios::trunc);
   if (!stream_) {

@@ -7,7 +7,9 @@
 //  2. Each output is written to a temporary file beside its (resolved) target and renamed over it
 //     only after the work succeeded (AtomicFile).
 //  3. Temporary files are removed on every error, and on SIGINT, SIGTERM and SIGHUP by a signal
-//     handler (InstallTemporaryFileCleanup) before the signal takes its default action.
+//     handler before the signal takes its default action, once a program has installed it
+//     (InstallTemporaryFileCleanup: the millkit command line does; a library never installs
+//     signal handlers behind its user's back).
 #pragma once
 
 #include <filesystem>
