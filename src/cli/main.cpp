@@ -7,10 +7,11 @@
 
 #include "cli/commands.h"
 #include "millkit/io/input_error.h"
+#include "millkit/version.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"MillKit: rolling-mill drive-line dynamics, identification and leveller setpoints"};
-  app.set_version_flag("--version", std::string("millkit ") + MILLKIT_VERSION);
+  app.set_version_flag("--version", std::string("millkit ") + MILLKIT_VERSION_STRING);
   app.require_subcommand(1);
   millkit::cli::AddSimulateCommand(app);
   millkit::cli::AddLevellerCommand(app);
