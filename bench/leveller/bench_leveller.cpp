@@ -19,6 +19,7 @@
 namespace {
 
 using namespace millkit::leveller;
+using millkit::optimize::Algorithm;
 
 constexpr double kToleranceMm = 1e-9;
 constexpr double kClosedFormTargetPerS = 1e6;
@@ -107,22 +108,26 @@ int main(int argc, char** argv) {
                          }));
   struct Variant {
     std::string name;
-    nlopt::algorithm algorithm;
+    Algorithm algorithm;
     InverseFormulation formulation;
     bool linearised_start;
     int divisor;  // slow derivative-free variants run on fewer targets
   };
   const Variant variants[] = {
-      {"NLopt LD_SLSQP constrained, linearised start", nlopt::LD_SLSQP,
+      {"NLopt LD_SLSQP constrained, linearised start", Algorithm::kLdSlsqp,
        InverseFormulation::kConstrained, true, 1},
-      {"NLopt LD_SLSQP constrained, start (0,0)", nlopt::LD_SLSQP, InverseFormulation::kConstrained,
-       false, 1},
-      {"NLopt LD_SLSQP least squares", nlopt::LD_SLSQP, InverseFormulation::kLeastSquares, true, 1},
-      {"NLopt LD_LBFGS least squares", nlopt::LD_LBFGS, InverseFormulation::kLeastSquares, true, 1},
-      {"NLopt LD_MMA least squares", nlopt::LD_MMA, InverseFormulation::kLeastSquares, true, 10},
-      {"NLopt LN_BOBYQA least squares", nlopt::LN_BOBYQA, InverseFormulation::kLeastSquares, true,
+      {"NLopt LD_SLSQP constrained, start (0,0)", Algorithm::kLdSlsqp,
+       InverseFormulation::kConstrained, false, 1},
+      {"NLopt LD_SLSQP least squares", Algorithm::kLdSlsqp, InverseFormulation::kLeastSquares, true,
+       1},
+      {"NLopt LD_LBFGS least squares", Algorithm::kLdLbfgs, InverseFormulation::kLeastSquares, true,
+       1},
+      {"NLopt LD_MMA least squares", Algorithm::kLdMma, InverseFormulation::kLeastSquares, true,
        10},
-      {"NLopt LN_COBYLA constrained", nlopt::LN_COBYLA, InverseFormulation::kConstrained, true, 10},
+      {"NLopt LN_BOBYQA least squares", Algorithm::kLnBobyqa, InverseFormulation::kLeastSquares,
+       true, 10},
+      {"NLopt LN_COBYLA constrained", Algorithm::kLnCobyla, InverseFormulation::kConstrained, true,
+       10},
   };
   for (const auto& v : variants) {
     NloptInverseOptions options;

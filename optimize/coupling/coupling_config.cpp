@@ -66,9 +66,9 @@ void ReadOptimizer(const TomlSection& top, CouplingOptions* options) {
   }
   const std::string local = section->String("local", "bobyqa");
   if (local == "bobyqa") {
-    options->local_algorithm = nlopt::LN_BOBYQA;
+    options->local_algorithm = optimize::Algorithm::kLnBobyqa;
   } else if (local == "cobyla") {
-    options->local_algorithm = nlopt::LN_COBYLA;
+    options->local_algorithm = optimize::Algorithm::kLnCobyla;
   } else if (local == "none") {
     options->local_evaluations = 0;
     if (section->Has("local_evaluations")) {

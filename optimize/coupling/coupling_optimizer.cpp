@@ -11,6 +11,7 @@
 #include "millkit/io/input_error.h"
 #include "millkit/io/number_format.h"
 #include "millkit/sweep/sweep_runner.h"
+#include "optimize/nlopt_algorithm.h"
 
 namespace millkit::coupling {
 namespace {
@@ -133,8 +134,8 @@ std::string RunStage(Search* search, nlopt::opt& opt, std::vector<double>& x, do
 void CouplingOptions::Validate() const {
   if (global_evaluations < 1) throw InputError("global_evaluations must be >= 1");
   if (local_evaluations < 0) throw InputError("local_evaluations must be >= 0");
-  if (local_evaluations > 0 && local_algorithm != nlopt::LN_BOBYQA &&
-      local_algorithm != nlopt::LN_COBYLA) {
+  if (local_evaluations > 0 && local_algorithm != optimize::Algorithm::kLnBobyqa &&
+      local_algorithm != optimize::Algorithm::kLnCobyla) {
     throw InputError("the local polish must be LN_BOBYQA or LN_COBYLA");
   }
   if (!(xtol > 0.0 && xtol < 1.0)) throw InputError("xtol must lie in (0, 1)");
@@ -277,7 +278,7 @@ CouplingResult OptimizeCoupling(const driveline::Scene& scene, const CouplingPro
   }
 
   // 1. Global stage over the unit cube, from its centre.
-  nlopt::opt global(options.global_algorithm, n);
+  nlopt::opt global(optimize::ToNlopt(options.global_algorithm), n);
   global.set_lower_bounds(std::vector<double>(n, 0.0));
   global.set_upper_bounds(std::vector<double>(n, 1.0));
   global.set_maxeval(options.global_evaluations);
@@ -285,15 +286,15 @@ CouplingResult OptimizeCoupling(const driveline::Scene& scene, const CouplingPro
   std::vector<double> x(n, 0.5);
   search.stage = "global";
   search.stage_evaluations = &summary.global_evaluations;
-  summary.global_algorithm =
-      nlopt_algorithm_to_string(static_cast<nlopt_algorithm>(options.global_algorithm));
+  summary.global_algorithm = nlopt_algorithm_to_string(
+      static_cast<nlopt_algorithm>(optimize::ToNlopt(options.global_algorithm)));
   summary.global_result = RunStage(&search, global, x, &summary.nlopt_value);
 
   // 2. Local polish from the best feasible point (else from where the global stage ended).
   summary.local_algorithm = "none";
   summary.local_result = "skipped";
   if (options.local_evaluations > 0) {
-    nlopt::opt local(options.local_algorithm, n);
+    nlopt::opt local(optimize::ToNlopt(options.local_algorithm), n);
     local.set_lower_bounds(std::vector<double>(n, 0.0));
     local.set_upper_bounds(std::vector<double>(n, 1.0));
     local.set_maxeval(options.local_evaluations);
@@ -307,8 +308,8 @@ CouplingResult OptimizeCoupling(const driveline::Scene& scene, const CouplingPro
     local.set_initial_step(step);
     search.stage = "local";
     search.stage_evaluations = &summary.local_evaluations;
-    summary.local_algorithm =
-        nlopt_algorithm_to_string(static_cast<nlopt_algorithm>(options.local_algorithm));
+    summary.local_algorithm = nlopt_algorithm_to_string(
+        static_cast<nlopt_algorithm>(optimize::ToNlopt(options.local_algorithm)));
     summary.local_result = RunStage(&search, local, x, &summary.nlopt_value);
   }
 

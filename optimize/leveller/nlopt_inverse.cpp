@@ -12,6 +12,7 @@
 
 #include "millkit/io/input_error.h"
 #include "millkit/io/number_format.h"
+#include "optimize/nlopt_algorithm.h"
 
 namespace millkit::leveller {
 namespace {
@@ -154,9 +155,10 @@ void NloptInverseOptions::Validate() const {
   if (!(ftol_abs >= 0.0)) throw InputError("ftol_abs must be >= 0");
   if (max_evaluations < 1) throw InputError("max_evaluations must be >= 1");
   if (formulation == InverseFormulation::kConstrained &&
-      !(algorithm == nlopt::LD_SLSQP || algorithm == nlopt::LN_COBYLA ||
-        algorithm == nlopt::GN_ISRES)) {
-    throw InputError(std::string("algorithm ") + nlopt::algorithm_name(algorithm) +
+      !(algorithm == optimize::Algorithm::kLdSlsqp || algorithm == optimize::Algorithm::kLnCobyla ||
+        algorithm == optimize::Algorithm::kGnIsres)) {
+    throw InputError(std::string("algorithm ") +
+                     nlopt::algorithm_name(optimize::ToNlopt(algorithm)) +
                      " does not take equality constraints; use the least-squares formulation");
   }
 }
@@ -196,7 +198,7 @@ NloptInverseResult NloptInverse::Solve(double y1_mm, double y2_mm) const {
                                     std::max(hi - kStartMarginRad, 0.5 * (lo + hi)));
     }
   }
-  nlopt::opt opt(options_.algorithm, 2);
+  nlopt::opt opt(optimize::ToNlopt(options_.algorithm), 2);
   opt.set_lower_bounds({lo, lo});
   opt.set_upper_bounds({hi, hi});
   opt.set_xtol_abs(options_.xtol_abs_rad);
@@ -215,7 +217,7 @@ NloptInverseResult NloptInverse::Solve(double y1_mm, double y2_mm) const {
   std::vector<double> x{problem.start[0], problem.start[1]};
   NloptInverseResult result;
   auto& summary = result.summary;
-  summary.algorithm = nlopt::algorithm_name(options_.algorithm);
+  summary.algorithm = nlopt::algorithm_name(optimize::ToNlopt(options_.algorithm));
   summary.nlopt_result = RunOptimizer(opt, x);
   summary.evaluations = problem.evaluations;
 

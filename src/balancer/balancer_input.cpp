@@ -5,6 +5,7 @@
 #include <map>
 #include <span>
 
+#include "balancer/balancer_toml.h"
 #include "io/toml_section.h"
 #include "millkit/balancer/roller_support.h"
 #include "millkit/io/input_error.h"
@@ -223,6 +224,10 @@ BalancerInput ReadBalancerInput(const toml::table& document, const std::string& 
 
   if (const auto v = FindInputViolation(input)) sections.at(v->section).Fail(v->key, v->rule);
   return input;
+}
+
+BalancerInput ReadBalancerInputFile(const std::filesystem::path& path) {
+  return ReadBalancerInput(LoadTomlFile(path), path.string());
 }
 
 toml::table ToToml(const BalancerInput& input) {

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "balancer/balancer_toml.h"
 #include "cli/commands.h"
 #include "io/toml_section.h"
 #include "millkit/balancer/balancer.h"

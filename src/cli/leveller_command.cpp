@@ -119,11 +119,11 @@ NloptInverseOptions InverseOptionsFor(const std::string& name) {
   if (name == "slsqp") return options;
   options.formulation = InverseFormulation::kLeastSquares;
   if (name == "slsqp-ls")
-    options.algorithm = nlopt::LD_SLSQP;
+    options.algorithm = optimize::Algorithm::kLdSlsqp;
   else if (name == "lbfgs")
-    options.algorithm = nlopt::LD_LBFGS;
+    options.algorithm = optimize::Algorithm::kLdLbfgs;
   else if (name == "bobyqa")
-    options.algorithm = nlopt::LN_BOBYQA;
+    options.algorithm = optimize::Algorithm::kLnBobyqa;
   else
     throw InputError("--algorithm must be slsqp, slsqp-ls, lbfgs or bobyqa (got " + name + ")");
   return options;

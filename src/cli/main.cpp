@@ -10,6 +10,7 @@
 #include "cli/commands.h"
 #include "millkit/io/input_error.h"
 #include "millkit/io/output_files.h"
+#include "millkit/version.h"
 
 namespace {
 
@@ -41,7 +42,7 @@ int main(int argc, char** argv) {
   // Ctrl-C, SIGTERM or SIGHUP in the middle of a run leave no temporary output behind.
   millkit::InstallTemporaryFileCleanup();
   CLI::App app{"MillKit: rolling-mill drive-line dynamics, identification and leveller setpoints"};
-  app.set_version_flag("--version", std::string("millkit ") + MILLKIT_VERSION);
+  app.set_version_flag("--version", std::string("millkit ") + MILLKIT_VERSION_STRING);
   app.require_subcommand(1);
   millkit::cli::AddSimulateCommand(app);
   millkit::cli::AddLevellerCommand(app);

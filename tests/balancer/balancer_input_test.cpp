@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 #include <string>
 
+#include "balancer/balancer_toml.h"
 #include "io/toml_section.h"
 #include "millkit/io/input_error.h"
 #include "support/run_cli.h"
@@ -37,6 +38,16 @@ TEST_CASE("The seed dataset describes the same device as the built-in seed case"
   const auto from_file =
       bal::ReadBalancerInput(millkit::LoadTomlFile(SourcePath(kSeedDataset)), kSeedDataset);
   CHECK(bal::ToToml(from_file) == bal::ToToml(bal::SeedCase()));
+}
+
+TEST_CASE("The public file reader reads the seed dataset as the built-in seed case", "[input]") {
+  const auto from_file = bal::ReadBalancerInputFile(SourcePath(kSeedDataset));
+  CHECK(bal::ToToml(from_file) == bal::ToToml(bal::SeedCase()));
+}
+
+TEST_CASE("The public file reader names a file it cannot read", "[input]") {
+  REQUIRE_THROWS_WITH(bal::ReadBalancerInputFile("no/such/balancer.toml"),
+                      Contains("no/such/balancer.toml"));
 }
 
 TEST_CASE("An input survives the round trip through TOML", "[input]") {

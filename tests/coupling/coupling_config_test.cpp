@@ -56,7 +56,7 @@ TEST_CASE("a coupling configuration with every table loads", "[coupling][config]
   CHECK(p.twist_limits[0].rated_torque_Nm == std::abs(static_torque[p.twist_limits[0].link]));
   CHECK(p.twist_limits[1].rated_torque_Nm == 2e5);
   CHECK(p.min_frequency_Hz == 5.0);
-  CHECK(study.options.local_algorithm == nlopt::LN_COBYLA);
+  CHECK(study.options.local_algorithm == millkit::optimize::Algorithm::kLnCobyla);
   CHECK(study.options.global_evaluations == 50);
   CHECK(study.curve.points == 11);
 }

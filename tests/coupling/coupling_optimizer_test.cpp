@@ -208,7 +208,7 @@ TEST_CASE("the coupling problem refuses what it cannot answer",
     options.global_evaluations = 0;
     CHECK_THROWS_AS(options.Validate(), InputError);
     options = {};
-    options.local_algorithm = nlopt::LD_LBFGS;
+    options.local_algorithm = millkit::optimize::Algorithm::kLdLbfgs;
     CHECK_THROWS_AS(options.Validate(), InputError);
   }
 }

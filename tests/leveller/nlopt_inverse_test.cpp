@@ -43,7 +43,9 @@ TEST_CASE("NLopt SLSQP with equality constraints agrees with the closed form ove
 
 TEST_CASE("Each least-squares algorithm either meets 1e-9 mm or is rejected by the re-check",
           "[leveller][nlopt]") {
-  for (const auto algorithm : {nlopt::LD_SLSQP, nlopt::LD_LBFGS, nlopt::LN_BOBYQA}) {
+  for (const auto algorithm :
+       {millkit::optimize::Algorithm::kLdSlsqp, millkit::optimize::Algorithm::kLdLbfgs,
+        millkit::optimize::Algorithm::kLnBobyqa}) {
     NloptInverseOptions options;
     options.algorithm = algorithm;
     options.formulation = InverseFormulation::kLeastSquares;
@@ -123,7 +125,7 @@ TEST_CASE("The cylinders' nearest reachable point is the closest over their leng
 
 TEST_CASE("Invalid NLopt options are rejected naming the rule", "[leveller][nlopt]") {
   NloptInverseOptions options;
-  options.algorithm = nlopt::LD_LBFGS;  // no equality constraints
+  options.algorithm = millkit::optimize::Algorithm::kLdLbfgs;  // no equality constraints
   REQUIRE_THROWS_WITH(NloptInverse(DefaultLinkage(), options),
                       Catch::Matchers::Contains("does not take equality constraints"));
   options = NloptInverseOptions{};

@@ -13,8 +13,7 @@
 // live in FindInputViolation() alone; the TOML reader and Validate() both report through it.
 #pragma once
 
-#include <toml++/toml.h>
-
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -157,12 +156,11 @@ const std::vector<std::pair<std::string, std::vector<std::string>>>& TomlLayout(
 // keys.
 bool TomlLayoutHas(std::string_view section, std::string_view key = {});
 
-// Reads a complete device description. `file` labels the messages. Throws InputError naming file,
-// table, key and line: unknown table or key, missing table or key, a value that is not a number,
-// and every rule of FindInputViolation().
-BalancerInput ReadBalancerInput(const toml::table& document, const std::string& file);
-
-// The TOML form of `input` (the layout ReadBalancerInput reads); ReadBalancerInput(ToToml(x)) == x.
-toml::table ToToml(const BalancerInput& input);
+// Reads a complete device description from a TOML file (the layout of TomlLayout()). Throws
+// InputError naming the file, table, key and line: a file that cannot be read or parsed, unknown
+// table or key, missing table or key, a value that is not a number, and every rule of
+// FindInputViolation(). (The reader of an already parsed document is private:
+// src/balancer/balancer_toml.h.)
+BalancerInput ReadBalancerInputFile(const std::filesystem::path& path);
 
 }  // namespace millkit::balancer

@@ -22,13 +22,13 @@
 // at good points and can return a point it did not score). Objective wrappers are noexcept.
 #pragma once
 
-#include <nlopt.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "millkit/driveline/scene.h"
 #include "millkit/driveline/simulation.h"
+#include "millkit/optimize/algorithm.h"
 #include "millkit/sweep/sample_plan.h"
 #include "millkit/sweep/sweep_case.h"
 
@@ -53,10 +53,10 @@ struct CouplingProblem {
 };
 
 struct CouplingOptions {
-  nlopt::algorithm global_algorithm = nlopt::GN_DIRECT_L;
+  optimize::Algorithm global_algorithm = optimize::Algorithm::kGnDirectL;
   int global_evaluations = 200;
-  // LN_BOBYQA, LN_COBYLA, or none (local_evaluations = 0).
-  nlopt::algorithm local_algorithm = nlopt::LN_BOBYQA;
+  // kLnBobyqa, kLnCobyla, or none (local_evaluations = 0).
+  optimize::Algorithm local_algorithm = optimize::Algorithm::kLnBobyqa;
   int local_evaluations = 100;
   double xtol = 1e-5;        // on the unit cube (relative to each variable's (log) range)
   double local_step = 0.05;  // initial step of the polish, on the unit cube

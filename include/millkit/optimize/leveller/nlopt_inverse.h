@@ -19,17 +19,18 @@
 #pragma once
 
 #include <array>
-#include <nlopt.hpp>
 #include <string>
 
 #include "millkit/leveller/linkage.h"
+#include "millkit/optimize/algorithm.h"
 
 namespace millkit::leveller {
 
 enum class InverseFormulation { kConstrained, kLeastSquares };
 
 struct NloptInverseOptions {
-  nlopt::algorithm algorithm = nlopt::LD_SLSQP;
+  // kConstrained takes kLdSlsqp, kLnCobyla or kGnIsres; kLeastSquares any of them.
+  optimize::Algorithm algorithm = optimize::Algorithm::kLdSlsqp;
   InverseFormulation formulation = InverseFormulation::kConstrained;
   bool linearised_start = true;         // false: start at β = (0, 0)
   double residual_tolerance_mm = 1e-9;  // acceptance test of the re-check
