@@ -175,7 +175,8 @@ Oscillogram LoadComtrade(const std::filesystem::path& cfg_path) {
   } else if (type == "BINARY" || type == "BINARY32" || type == "FLOAT32") {
     const int width = type == "BINARY" ? 2 : 4;
     const int digital_words = (digital_count + 15) / 16;
-    const size_t size = 8 + static_cast<size_t>(analog_count) * width + 2 * digital_words;
+    const size_t size =
+        8 + static_cast<size_t>(analog_count) * width + 2 * static_cast<size_t>(digital_words);
     std::vector<unsigned char> sample(size);
     long index = 0;
     while (dat.read(reinterpret_cast<char*>(sample.data()), static_cast<std::streamsize>(size))) {

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstddef>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -465,7 +466,7 @@ std::vector<Model::WatchedSurface> Model::Watched(const Phases& phases) const {
 }
 
 LinkPhase Model::PhaseFromSides(int k, const int* side) const {
-  const int* s = side + kLinkSurfaces * k;
+  const int* s = side + static_cast<std::ptrdiff_t>(kLinkSurfaces) * k;
   switch (scene_.contact) {
     case ContactLaw::kLinear:
       if (s[kS0] > 0) return LinkPhase::kPosSpringDamper;
@@ -514,7 +515,7 @@ Phases Model::Classify(const Eigen::VectorXd& z, const std::vector<Eigen::Vector
     values = heap_values.data();
   }
   Eigen::Map<Eigen::VectorXd> g(values, count), scale(values + count, count);
-  Eigen::Map<Eigen::VectorXd> abs_z(values + 2 * count, n);
+  Eigen::Map<Eigen::VectorXd> abs_z(values + 2 * static_cast<std::ptrdiff_t>(count), n);
   g.noalias() = surfaces_ * z;
   // The size of each surface's terms, |G| |z|: what "zero to roundoff" is measured against.
   abs_z = z.cwiseAbs();
@@ -735,11 +736,11 @@ std::string Model::DescribePhases(const Phases& phases) const {
   std::string text;
   for (int k = 0; k < backlash_link_count(); ++k) {
     text += (text.empty() ? "" : " ") + scene_.links[flexible_links_[backlash_links_[k]]].name +
-            ":" + kLinkNames[static_cast<int>(phases[k])];
+            ":" + kLinkNames[static_cast<unsigned char>(phases[k])];
   }
   if (has_drive()) {
     text += std::string(text.empty() ? "" : " ") +
-            "drive:" + kDriveNames[static_cast<int>(phases.back())];
+            "drive:" + kDriveNames[static_cast<unsigned char>(phases.back())];
   }
   return text;
 }
