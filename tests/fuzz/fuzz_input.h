@@ -8,6 +8,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -26,28 +28,36 @@ inline std::string Text(const std::uint8_t* data, std::size_t size) {
   return std::string(reinterpret_cast<const char*>(data), size);
 }
 
-// Writes the input to `name` in this process's own temporary directory (parallel fuzzing jobs do
-// not share it) and returns the path, for parsers that read files.
-inline std::filesystem::path WriteInput(const std::uint8_t* data, std::size_t size,
-                                        const std::string& name) {
+// This process's own temporary directory (parallel fuzzing jobs do not share it).
+inline const std::filesystem::path& InputDir() {
   static const std::filesystem::path dir = [] {
     auto path = std::filesystem::temp_directory_path() /
                 ("millkit_fuzz_" + std::to_string(static_cast<long>(getpid())));
     std::filesystem::create_directories(path);
     return path;
   }();
-  const std::filesystem::path path = dir / name;
+  return dir;
+}
+
+// Writes the input to `name` in InputDir() and returns the path, for parsers that read files.
+inline std::filesystem::path WriteInput(const std::uint8_t* data, std::size_t size,
+                                        const std::string& name) {
+  const std::filesystem::path path = InputDir() / name;
   std::ofstream(path, std::ios::binary | std::ios::trunc)
       .write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
   return path;
 }
 
-// Runs `parse`; InputError is a refusal with a named rule, a normal outcome.
+// Runs `parse`; InputError is a refusal with a named rule, a normal outcome. With
+// MILLKIT_FUZZ_VERBOSE set, the harness prints the refusal (to check that a seed parses).
 template <class Parse>
 int Outcome(Parse&& parse) {
+  static const bool verbose = std::getenv("MILLKIT_FUZZ_VERBOSE") != nullptr;
   try {
     parse();
-  } catch (const InputError&) {
+    if (verbose) std::fprintf(stderr, "parsed\n");
+  } catch (const InputError& error) {
+    if (verbose) std::fprintf(stderr, "InputError: %s\n", error.what());
   }
   return 0;
 }
