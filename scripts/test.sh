@@ -8,7 +8,7 @@ set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build=${BUILD_DIR:-$here/build}
 asan_build=${ASAN_BUILD_DIR:-$here/build-asan}
-stages=${STAGES-format}
+stages=${STAGES-format tidy}
 
 stage() {
   local name=$1
