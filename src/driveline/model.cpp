@@ -534,6 +534,9 @@ Phases Model::Classify(const Eigen::VectorXd& z, const std::vector<Eigen::Vector
     // On the surface to roundoff (rare): the motion decides, by its first moving derivative.
     side[j] = default_side_[j];
     for (const Eigen::VectorXd& derivative : derivatives) {
+      // An order the caller left empty (the exact solver stops at a zero derivative) tells
+      // nothing (and a dot product of unequal sizes breaks Eigen's contract).
+      if (derivative.size() != z.size()) continue;
       const double gk = surfaces_.row(j).dot(derivative);
       const double scale_k = abs_surfaces_.row(j).dot(derivative.cwiseAbs());
       if (std::abs(gk) > kRoundoffZero * scale_k && gk != 0.0) {
