@@ -26,7 +26,9 @@ std::vector<std::string> Fields(const std::string& line) {
   std::string field;
   std::istringstream in(line);
   while (std::getline(in, field, ',')) fields.push_back(Trim(field));
-  if (!line.empty() && Trim(line).back() == ',') fields.push_back("");
+  // A line of blanks trims to "" (back() on it was undefined; found by tests/fuzz/comtrade_fuzz).
+  const std::string trimmed = Trim(line);
+  if (!trimmed.empty() && trimmed.back() == ',') fields.push_back("");
   return fields;
 }
 
@@ -110,7 +112,10 @@ Oscillogram LoadComtrade(const std::filesystem::path& cfg_path) {
   }
   for (int k = 0; k < digital_count; ++k) cfg.Next("digital channel");
   cfg.Next("line frequency");
-  const int rates = static_cast<int>(cfg.Number(cfg.Next("sample rate count").at(0), "nrates"));
+  // An empty line has no field: .at(0) threw std::out_of_range (tests/fuzz/comtrade_fuzz).
+  const auto rate_count = cfg.Next("sample rate count");
+  if (rate_count.empty()) throw InputError(cfg.Where() + ": expected nrates");
+  const int rates = static_cast<int>(cfg.Number(rate_count[0], "nrates"));
   std::vector<std::pair<double, long>> segments;  // (samples per s, last sample number)
   for (int k = 0; k < rates; ++k) {
     const auto f = cfg.Next("sample rate");
