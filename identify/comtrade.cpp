@@ -26,7 +26,9 @@ std::vector<std::string> Fields(const std::string& line) {
   std::string field;
   std::istringstream in(line);
   while (std::getline(in, field, ',')) fields.push_back(Trim(field));
-  if (!line.empty() && Trim(line).back() == ',') fields.push_back("");
+  // A line of blanks trims to "" (back() on it was undefined; found by tests/fuzz/comtrade_fuzz).
+  const std::string trimmed = Trim(line);
+  if (!trimmed.empty() && trimmed.back() == ',') fields.push_back("");
   return fields;
 }
 
@@ -50,6 +52,16 @@ class CfgReader {
   }
   bool HasMore() const { return next_ < lines_.size(); }
   std::string Where() const { return path_ + ": line " + std::to_string(next_); }
+  // A count or sample number: a Number in int range (a cast from beyond it is undefined; found
+  // by tests/fuzz/comtrade_fuzz).
+  long Count(const std::string& text, const std::string& what) const {
+    const double value = Number(text, what);
+    if (!(std::abs(value) <= 2147483647.0)) {
+      throw InputError(Where() + ": " + what + " '" + text + "' is out of range");
+    }
+    return static_cast<long>(value);
+  }
+
   double Number(const std::string& text, const std::string& what) const {
     try {
       size_t used = 0;
@@ -81,12 +93,12 @@ Oscillogram LoadComtrade(const std::filesystem::path& cfg_path) {
   cfg.Next("station");
   const auto counts = cfg.Next("channel count");
   if (counts.size() < 3) throw InputError(cfg.Where() + ": expected TT,##A,##D");
-  const int total = static_cast<int>(cfg.Number(counts[0], "channel count"));
+  const int total = static_cast<int>(cfg.Count(counts[0], "channel count"));
   const auto count_of = [&](const std::string& field, char kind) {
     if (field.empty() || std::toupper(static_cast<unsigned char>(field.back())) != kind) {
       throw InputError(cfg.Where() + ": '" + field + "' must end in " + kind);
     }
-    return static_cast<int>(cfg.Number(field.substr(0, field.size() - 1), "channel count"));
+    return static_cast<int>(cfg.Count(field.substr(0, field.size() - 1), "channel count"));
   };
   const int analog_count = count_of(counts[1], 'A');
   const int digital_count = count_of(counts[2], 'D');
@@ -110,12 +122,15 @@ Oscillogram LoadComtrade(const std::filesystem::path& cfg_path) {
   }
   for (int k = 0; k < digital_count; ++k) cfg.Next("digital channel");
   cfg.Next("line frequency");
-  const int rates = static_cast<int>(cfg.Number(cfg.Next("sample rate count").at(0), "nrates"));
+  // An empty line has no field: .at(0) threw std::out_of_range (tests/fuzz/comtrade_fuzz).
+  const auto rate_count = cfg.Next("sample rate count");
+  if (rate_count.empty()) throw InputError(cfg.Where() + ": expected nrates");
+  const int rates = static_cast<int>(cfg.Count(rate_count[0], "nrates"));
   std::vector<std::pair<double, long>> segments;  // (samples per s, last sample number)
   for (int k = 0; k < rates; ++k) {
     const auto f = cfg.Next("sample rate");
     if (f.size() < 2) throw InputError(cfg.Where() + ": expected samp,endsamp");
-    segments.emplace_back(cfg.Number(f[0], "samp"), static_cast<long>(cfg.Number(f[1], "endsamp")));
+    segments.emplace_back(cfg.Number(f[0], "samp"), cfg.Count(f[1], "endsamp"));
   }
   cfg.Next("first sample time");
   cfg.Next("trigger time");
@@ -175,7 +190,8 @@ Oscillogram LoadComtrade(const std::filesystem::path& cfg_path) {
   } else if (type == "BINARY" || type == "BINARY32" || type == "FLOAT32") {
     const int width = type == "BINARY" ? 2 : 4;
     const int digital_words = (digital_count + 15) / 16;
-    const size_t size = 8 + static_cast<size_t>(analog_count) * width + 2 * digital_words;
+    const size_t size =
+        8 + static_cast<size_t>(analog_count) * width + 2 * static_cast<size_t>(digital_words);
     std::vector<unsigned char> sample(size);
     long index = 0;
     while (dat.read(reinterpret_cast<char*>(sample.data()), static_cast<std::streamsize>(size))) {

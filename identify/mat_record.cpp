@@ -134,6 +134,7 @@ Oscillogram LoadMatRecord(const std::filesystem::path& path, const RecordOptions
           : "named '" + options.time_column + "' (RecordOptions::time_column)";
   // The scope: the top level when it holds the time vector, else the one struct that does.
   std::vector<Entry> scope;
+  scope.reserve(variables.size());
   for (const auto& v : variables) scope.push_back({v->name ? v->name : "", v.get()});
   std::string prefix;
   bool top_has_time = false;

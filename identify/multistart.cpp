@@ -60,7 +60,9 @@ std::vector<std::vector<double>> ScanStarts(const FitModel& model, const FitConf
   std::vector<std::vector<double>> best;
   for (const auto& [cost, u] : candidates) {
     if (static_cast<int>(best.size()) >= count) break;
-    const bool distinct = std::all_of(best.begin(), best.end(), [&](const auto& other) {
+    // Structured bindings are captured by name only from clang 16 on (P1091); clang-14 builds
+    // the sanitizer and fuzzing targets.
+    const bool distinct = std::all_of(best.begin(), best.end(), [&, &u = u](const auto& other) {
       return distance(u, other) >= options.distinct_start;
     });
     if (distinct) best.push_back(u);
@@ -147,7 +149,7 @@ std::vector<std::vector<double>> PreselectStarts(FitModel* model, const FitOptio
   std::vector<std::vector<double>> best;
   for (const auto& [cost, u] : fitted) {
     if (static_cast<int>(best.size()) >= count) break;
-    const bool distinct = std::all_of(best.begin(), best.end(), [&](const auto& other) {
+    const bool distinct = std::all_of(best.begin(), best.end(), [&, &u = u](const auto& other) {
       double sum = 0.0;
       for (size_t s = 0; s < u.size(); ++s) sum += (u[s] - other[s]) * (u[s] - other[s]);
       return std::sqrt(sum / std::max<size_t>(1, u.size())) >= options.distinct_start;

@@ -148,6 +148,7 @@ Oscillogram ParseOscillogram(const std::string& text, const std::string& source,
 
 std::vector<std::string> RecordLabels(const std::vector<Oscillogram>& records) {
   std::vector<std::string> labels;
+  labels.reserve(records.size());
   for (const auto& record : records) {
     labels.push_back(std::filesystem::path(record.source).stem().string());
   }

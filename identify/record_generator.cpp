@@ -105,8 +105,8 @@ Oscillogram GenerateRecord(const driveline::Scene& truth, const RecordSpec& spec
     double measured_peak = 0.0;
     std::vector<double> values(count);
     for (int k = 0; k < count; ++k) {
-      values[k] = channel.gain * filtered[k * d.oversample] + channel.offset_Nm +
-                  d.noise_fraction * peak * noise.Next();
+      values[k] = channel.gain * filtered[static_cast<size_t>(k) * d.oversample] +
+                  channel.offset_Nm + d.noise_fraction * peak * noise.Next();
       measured_peak = std::max(measured_peak, std::abs(values[k]));
     }
     if (d.bits > 0) {

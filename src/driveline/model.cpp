@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -439,7 +440,7 @@ std::vector<Model::WatchedSurface> Model::Watched(const Phases& phases) const {
 }
 
 LinkPhase Model::PhaseFromSides(int k, const int* side) const {
-  const int* s = side + kLinkSurfaces * k;
+  const int* s = side + static_cast<std::ptrdiff_t>(kLinkSurfaces) * k;
   switch (scene_.contact) {
     case ContactLaw::kLinear:
       if (s[kS0] > 0) return LinkPhase::kPosSpringDamper;
@@ -488,7 +489,7 @@ Phases Model::Classify(const Eigen::VectorXd& z, const std::vector<Eigen::Vector
     values = heap_values.data();
   }
   Eigen::Map<Eigen::VectorXd> g(values, count), scale(values + count, count);
-  Eigen::Map<Eigen::VectorXd> abs_z(values + 2 * count, n);
+  Eigen::Map<Eigen::VectorXd> abs_z(values + 2 * static_cast<std::ptrdiff_t>(count), n);
   g.noalias() = surfaces_ * z;
   // The size of each surface's terms, |G| |z|: what "zero to roundoff" is measured against.
   abs_z = z.cwiseAbs();
@@ -507,6 +508,9 @@ Phases Model::Classify(const Eigen::VectorXd& z, const std::vector<Eigen::Vector
     // On the surface to roundoff (rare): the motion decides, by its first moving derivative.
     side[j] = default_side_[j];
     for (const Eigen::VectorXd& derivative : derivatives) {
+      // An order the caller left empty (the exact solver stops at a zero derivative) tells
+      // nothing (and a dot product of unequal sizes breaks Eigen's contract).
+      if (derivative.size() != z.size()) continue;
       const double gk = surfaces_.row(j).dot(derivative);
       const double scale_k = abs_surfaces_.row(j).dot(derivative.cwiseAbs());
       if (std::abs(gk) > kRoundoffZero * scale_k && gk != 0.0) {
@@ -708,11 +712,11 @@ std::string Model::DescribePhases(const Phases& phases) const {
   std::string text;
   for (int k = 0; k < backlash_link_count(); ++k) {
     text += (text.empty() ? "" : " ") + scene_.links[flexible_links_[backlash_links_[k]]].name +
-            ":" + kLinkNames[static_cast<int>(phases[k])];
+            ":" + kLinkNames[static_cast<unsigned char>(phases[k])];
   }
   if (has_drive()) {
     text += std::string(text.empty() ? "" : " ") +
-            "drive:" + kDriveNames[static_cast<int>(phases.back())];
+            "drive:" + kDriveNames[static_cast<unsigned char>(phases.back())];
   }
   return text;
 }

@@ -159,7 +159,6 @@ ParameterRange PhysicalRange(SceneParameter::Kind kind) {
     case SceneParameter::Kind::kStiffness:
       return {0.0, kInf, false};
     case SceneParameter::Kind::kDamping:
-      return {0.0, kInf, true};
     case SceneParameter::Kind::kBacklash:
       return {0.0, kInf, true};
     case SceneParameter::Kind::kGapPosition:

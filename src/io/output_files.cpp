@@ -36,7 +36,7 @@ std::string Describe(const std::string& option, const std::string& path) {
 std::filesystem::path ResolvedOutputPath(const std::filesystem::path& path) {
   std::error_code error;
   if (std::filesystem::is_symlink(std::filesystem::symlink_status(path, error))) {
-    const auto target = std::filesystem::weakly_canonical(path, error);
+    auto target = std::filesystem::weakly_canonical(path, error);
     if (!error) return target;
   }
   return path;

@@ -168,7 +168,7 @@ class Model {
   void BuildSurfaces();
   Eigen::VectorXd ComputeInitialState() const;
   Eigen::VectorXd ComputeStateScale() const;
-  LinkPhase PhaseFromSides(int backlash, const int* side) const;
+  LinkPhase PhaseFromSides(int k, const int* side) const;
 
   Scene user_scene_;  // as given
   Scene scene_;       // ReducedScene(user_scene_): what every member below works on
