@@ -2,8 +2,9 @@
 # Sets up (packages, configure, build) and runs the whole test suite, then the checks CI adds:
 # format drift (check_format.sh), clang-tidy (tidy.sh), the tests under ASan+UBSan
 # (sanitize.sh, build-asan) and a short libFuzzer run of every harness (fuzz.sh). The plain tests
-# run first. Each stage prints its time. STAGES picks the extra checks (default: all four), e.g.
-# STAGES="format tidy" scripts/test.sh, or STAGES= for the plain build and tests only.
+# run first. Each stage prints its time. STAGES picks the extra checks (default: format and tidy;
+# all four: STAGES="format tidy sanitize fuzz" scripts/test.sh; STAGES= for the plain build and
+# tests only).
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build=${BUILD_DIR:-$here/build}
