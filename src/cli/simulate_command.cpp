@@ -40,13 +40,12 @@ void RunSimulate(const SimulateArgs& args) {
   }
   CheckOutputPaths({{"--out", args.out}}, {args.scene});
   driveline::SimulationOptions options;
-  if (args.solver == "exact") {
-    options.solver = driveline::SolverKind::kExact;
-  } else if (args.solver == "cvode") {
-    options.solver = driveline::SolverKind::kCvode;
-  } else {
-    throw InputError("option --solver: must be exact or cvode (got '" + args.solver + "')");
+  const driveline::SolverInfo* solver = driveline::FindSolver(args.solver);
+  if (solver == nullptr) {
+    throw InputError("option --solver: must be one of " + driveline::SolverNames() + " (got '" +
+                     args.solver + "')");
   }
+  options.solver = solver->kind;
   options.rtol = args.rtol;
   options.atol = args.atol;
   options.Validate();
@@ -115,7 +114,14 @@ void AddSimulateCommand(CLI::App& app) {
   command->add_option("--out", args->out,
                       "Result CSV, written row by row as the run goes (atomically: nothing is "
                       "left on failure). Required unless --kd-only");
-  command->add_option("--solver", args->solver, "exact (default) or cvode");
+  std::string solvers;
+  for (const driveline::SolverInfo& info : driveline::Solvers()) {
+    solvers += solvers.empty() ? "" : "; ";
+    solvers += info.name;
+    solvers += ": ";
+    solvers += info.description;
+  }
+  command->add_option("--solver", args->solver, "Solver (default exact). " + solvers);
   command->add_option("--rtol", args->rtol,
                       "CVODE relative tolerance (default 1e-8). CVODE runs twice, the second time "
                       "at rtol/10, and reports the difference as its error (warning above 1e-6 "

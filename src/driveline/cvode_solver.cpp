@@ -1,15 +1,15 @@
-// CVODES solver for the drive line (issue 2). See simulation.h for the contract.
+// CVODES integrator for the drive line (issue 2). See simulation.h for the contract.
 // Between events the model is x' = A x + B w(t) with w linear in time between input breakpoints;
 // the Jacobian is A exactly. Root functions are the watched switching surfaces of the current
-// phases; at a root the integrator stops, the phases flip (the crossed surface's new side is the
-// root's direction) and CVODE is reinitialised. Input breakpoints are stop times.
+// phases; at a root the integrator stops, the hybrid driver (hybrid_driver.h) classifies the new
+// phases (the crossed surface's new side is the root's direction) and CVODE is reinitialised.
+// Input breakpoints are stop times; CVODE steps past an output time and interpolates back.
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <exception>
 #include <limits>
 
-#include "driveline/output_recorder.h"
+#include "driveline/hybrid_driver.h"
 #include "millkit/driveline/simulation.h"
 #include "numerics/sundials_handles.h"
 
@@ -23,7 +23,6 @@ using numerics::SundialsMatrix;
 using numerics::SundialsVector;
 
 constexpr double kEps = std::numeric_limits<double>::epsilon();
-constexpr int kMaxStalledEvents = 64;
 // Root functions are the signed surfaces plus this fraction of their typical magnitude. CVODE
 // deactivates a root function that is zero at the start of an integration and never reports a
 // crossing of it afterwards: a link resting exactly on a flank (gap_position ±1) and pushed
@@ -88,201 +87,239 @@ std::string FlagName(int flag) {
   return text;
 }
 
-}  // namespace
+void Check(int flag, const char* call) {
+  if (flag < 0) throw std::runtime_error(std::string(call) + " failed: " + FlagName(flag));
+}
 
-SimulationResult SimulateCvode(const Model& model, const SimulationOptions& options) {
-  options.Validate(model.scene());
-  const auto started = std::chrono::steady_clock::now();
-  const Scene& scene = model.reduced_scene();  // outputs convert back in the recorder
-  SimulationResult result;
-  SimulationSummary& summary = result.summary;
-  summary.solver = "cvode";
-  summary.reduction = model.reduction().report;
-  summary.error_kind = "requested tolerance";
-  summary.error_estimate = options.rtol;
-  OutputRecorder recorder(model, options, &result);
-  const OutputGrid& times = recorder.times();
-  const int samples = recorder.size();
-  // Time scale for "events that do not advance time".
-  const double h = 1.0 / scene.sample_rate_Hz;
-  const int nx = model.state_size(), nw = model.forcing_size();
+class CvodeIntegrator final : public ModeIntegrator {
+ public:
+  CvodeIntegrator(const Model& model, const SimulationOptions& options)
+      : model_(model),
+        options_(options),
+        nx_(model.state_size()),
+        nw_(model.forcing_size()),
+        h_(1.0 / model.reduced_scene().sample_rate_Hz) {}
 
-  Eigen::VectorXd z = model.InitialState();
-  if (options.initial_state) z.head(nx) = options.initial_state->head(nx);
-  Phases phases = model.InitialPhases(z);
+  double time_scale() const override { return h_; }
 
-  Problem problem;
-  problem.model = &model;
-  problem.nx = nx;
-  problem.w0 = z.segment(nx, nw);
-  problem.slope = z.tail(nw);
-  const Eigen::VectorXd state_scale = model.StateScale();
-  auto configure = [&](const Phases& p) {
-    model.LinearPieces(p, &problem.a, &problem.b);
-    problem.watched = model.Watched(p);
-    problem.rows.resize(static_cast<int>(problem.watched.size()), nx + nw);
-    problem.margin.resize(static_cast<int>(problem.watched.size()));
-    for (size_t i = 0; i < problem.watched.size(); ++i) {
-      const int r = static_cast<int>(i);
-      problem.rows.row(r) =
-          problem.watched[i].side * model.surfaces().row(problem.watched[i].index).head(nx + nw);
-      problem.margin[r] =
-          kCrossingMargin *
-          (problem.rows.row(r).head(nx).cwiseAbs().dot(state_scale) +
-           problem.rows.row(r).tail(nw).cwiseAbs().dot(problem.w0.cwiseAbs().cwiseMax(1.0)));
+  std::string Start(const Eigen::VectorXd& z0, const Phases& phases,
+                    SimulationSummary* summary) override {
+    summary->error_kind = "requested tolerance";
+    summary->error_estimate = options_.rtol;
+    problem_.model = &model_;
+    problem_.nx = nx_;
+    problem_.w0 = z0.segment(nx_, nw_);
+    problem_.slope = z0.tail(nw_);
+    state_scale_ = model_.StateScale();
+    phases_ = phases;
+    Configure();
+    try {
+      y_ = SundialsVector(N_VNew_Serial(nx_, context_.get()));
+      SundialsVector atol(N_VNew_Serial(nx_, context_.get()));
+      State() = z0.head(nx_);
+      Eigen::Map<Eigen::VectorXd>(N_VGetArrayPointer(atol.get()), nx_) =
+          options_.atol.value_or(options_.rtol) * state_scale_;
+      jacobian_ = SundialsMatrix(SUNDenseMatrix(nx_, nx_, context_.get()));
+      solver_ = SundialsLinearSolver(SUNLinSol_Dense(y_.get(), jacobian_.get(), context_.get()));
+      memory_ = CvodeMemory(CVodeCreate(CV_BDF, context_.get()));
+      void* mem = memory_.get();
+      Check(CVodeInit(mem, Rhs, 0.0, y_.get()), "CVodeInit");
+      Check(CVodeSVtolerances(mem, options_.rtol, atol.get()), "CVodeSVtolerances");
+      Check(CVodeSetUserData(mem, &problem_), "CVodeSetUserData");
+      Check(CVodeSetLinearSolver(mem, solver_.get(), jacobian_.get()), "CVodeSetLinearSolver");
+      Check(CVodeSetJacFn(mem, Jacobian), "CVodeSetJacFn");
+      Check(CVodeSetMaxNumSteps(mem, options_.max_steps), "CVodeSetMaxNumSteps");
+      Check(CVodeSetNoInactiveRootWarn(mem), "CVodeSetNoInactiveRootWarn");
+      SetRoots();
+    } catch (const std::exception& e) {
+      return e.what();
     }
-  };
-  auto record = [&](int sample, double t, const Eigen::VectorXd& x) {
-    Eigen::VectorXd state(model.augmented_size());
-    state << x, problem.Forcing(t), problem.slope;
-    recorder.Record(sample, phases, state);
-  };
-  int k = 0;
-  if (times.front() == 0.0) {
-    record(0, 0.0, z.head(nx));
-    k = 1;
+    return {};
   }
-  configure(phases);
 
-  SundialsContext context;
-  SundialsVector y(N_VNew_Serial(nx, context.get()));
-  SundialsVector atol(N_VNew_Serial(nx, context.get()));
-  Eigen::Map<Eigen::VectorXd> y_data(N_VGetArrayPointer(y.get()), nx);
-  y_data = z.head(nx);
-  Eigen::Map<Eigen::VectorXd>(N_VGetArrayPointer(atol.get()), nx) =
-      options.atol.value_or(options.rtol) * model.StateScale();
-  SundialsMatrix jac(SUNDenseMatrix(nx, nx, context.get()));
-  SundialsLinearSolver solver(SUNLinSol_Dense(y.get(), jac.get(), context.get()));
-  CvodeMemory memory(CVodeCreate(CV_BDF, context.get()));
-  void* mem = memory.get();
-
-  const std::vector<double> breakpoints = scene.InputBreakpoints();
-  size_t next_breakpoint = 0;
-  // The run ends at the last output time: no stop at a breakpoint after it.
-  const double t_final = times.back();
-  auto stop_time = [&] {
-    return next_breakpoint < breakpoints.size() ? std::min(breakpoints[next_breakpoint], t_final)
-                                                : t_final;
-  };
-  auto check = [&](int flag, const char* call) {
-    if (flag < 0) throw std::runtime_error(std::string(call) + " failed: " + FlagName(flag));
-  };
-  long steps = 0, rhs = 0, jacs = 0;
-  auto harvest = [&] {
-    long value = 0;
-    CVodeGetNumSteps(mem, &value);
-    steps += value;
-    CVodeGetNumRhsEvals(mem, &value);
-    rhs += value;
-    CVodeGetNumJacEvals(mem, &value);
-    jacs += value;
-  };
-  auto set_roots = [&] {
-    check(CVodeRootInit(mem, static_cast<int>(problem.watched.size()),
-                        problem.watched.empty() ? nullptr : Roots),
-          "CVodeRootInit");
-  };
-
-  try {
-    check(CVodeInit(mem, Rhs, 0.0, y.get()), "CVodeInit");
-    check(CVodeSVtolerances(mem, options.rtol, atol.get()), "CVodeSVtolerances");
-    check(CVodeSetUserData(mem, &problem), "CVodeSetUserData");
-    check(CVodeSetLinearSolver(mem, solver.get(), jac.get()), "CVodeSetLinearSolver");
-    check(CVodeSetJacFn(mem, Jacobian), "CVodeSetJacFn");
-    check(CVodeSetMaxNumSteps(mem, options.max_steps), "CVodeSetMaxNumSteps");
-    check(CVodeSetNoInactiveRootWarn(mem), "CVodeSetNoInactiveRootWarn");
-    check(CVodeSetStopTime(mem, stop_time()), "CVodeSetStopTime");
-    set_roots();
-    auto reinit = [&](double t) {
-      harvest();
-      check(CVodeReInit(mem, t, y.get()), "CVodeReInit");
-      set_roots();
-      check(CVodeSetStopTime(mem, stop_time()), "CVodeSetStopTime");
-    };
-
-    double last_event_t = -1.0;
-    int stalled = 0;
-    std::vector<int> roots_found;
-    double t = 0.0;
-    while (k < samples && summary.message.empty()) {
-      const double tout = times[k];
-      if (tout - t <= 4 * kEps * std::max(1.0, tout)) {
-        // An event or a breakpoint landed on this sample time: the state is already there.
-        record(k, tout, y_data);
-        ++k;
-        continue;
+  void Advance(double t, const Leg& leg, LegEnd* end) override {
+    end->kind = LegEnd::Kind::kReached;
+    end->t = t;
+    end->elapsed = 0.0;
+    if (!failure_.empty()) return Fail(failure_, end);
+    try {
+      if (Ignoring(leg.ignored)) {
+        ignored_ = leg.ignored != nullptr ? *leg.ignored : std::vector<char>{};
+        Configure();
+        Restart(t);
       }
-      const int flag = CVode(mem, tout, y.get(), &t, CV_NORMAL);
+      const double tout = leg.output_time;
+      if (leg.at_output && tout - t <= 4 * kEps * std::max(1.0, tout)) {
+        return;  // an event or a breakpoint landed on this output time: the state is there
+      }
+      // Output times are interpolated; breakpoints, the end of the run and an escape's end are
+      // stops.
+      const double stop = leg.at_breakpoint ? leg.breakpoint
+                          : leg.at_output   ? leg.next_stop
+                                            : leg.target;
+      if (stop != stop_) {
+        Check(CVodeSetStopTime(memory_.get(), stop), "CVodeSetStopTime");
+        stop_ = stop;
+      }
+      double reached = t;
+      const int flag = CVode(memory_.get(), tout, y_.get(), &reached, CV_NORMAL);
+      t_ = reached;
+      end->t = reached;
+      end->elapsed = reached - t;
       if (flag == CV_ROOT_RETURN) {
-        roots_found.assign(problem.watched.size(), 0);
-        check(CVodeGetRootInfo(mem, roots_found.data()), "CVodeGetRootInfo");
-        std::vector<Model::KnownSide> known;
-        for (size_t i = 0; i < roots_found.size(); ++i) {
+        roots_found_.assign(problem_.watched.size(), 0);
+        Check(CVodeGetRootInfo(memory_.get(), roots_found_.data()), "CVodeGetRootInfo");
+        end->kind = LegEnd::Kind::kEvent;
+        end->crossed.clear();
+        for (size_t i = 0; i < roots_found_.size(); ++i) {
           // The signed function falls through zero: the surface's new side is −side.
-          if (roots_found[i] != 0) {
-            known.push_back({problem.watched[i].index, roots_found[i] * problem.watched[i].side});
+          if (roots_found_[i] != 0) {
+            end->crossed.push_back(
+                {problem_.watched[i].index, roots_found_[i] * problem_.watched[i].side});
           }
         }
-        Eigen::VectorXd state(model.augmented_size());
-        state << y_data, problem.Forcing(t), problem.slope;
-        const Eigen::MatrixXd m = model.SystemMatrix(phases);
-        const Eigen::VectorXd zdot = m * state;
-        phases = model.Classify(state, zdot, m * zdot, known);
-        configure(phases);
-        if (t - last_event_t <= 64 * kEps * std::max(std::abs(t), h)) {
-          if (++stalled > kMaxStalledEvents) {
-            summary.message = "events do not advance time at t = " + std::to_string(t);
-          }
-        } else {
-          stalled = 0;
-        }
-        last_event_t = t;
-        summary.event_times_s.push_back(t);
-        if (++summary.events > options.max_events) {
-          summary.message = "more than max_events switching events by t = " + std::to_string(t);
-        }
-        reinit(t);
-        continue;
-      }
-      if (flag == CV_TSTOP_RETURN) {
-        if (next_breakpoint < breakpoints.size() && t >= breakpoints[next_breakpoint]) {
-          ++next_breakpoint;
-          for (int s = 0; s < nw - 1; ++s) {
-            problem.w0[1 + s] = scene.torques[s].ValueAt(t);
-            problem.slope[1 + s] = scene.torques[s].SlopeAt(t);
-          }
-          problem.t_segment = t;
-          reinit(t);
-        }
-        if (std::abs(t - tout) <= 4 * kEps * std::max(1.0, tout)) {
-          record(k, tout, y_data);
-          ++k;
-        }
-        continue;
+        return;
       }
       if (flag < 0) {
-        summary.message = "CVode failed at t = " + std::to_string(t) + ": " + FlagName(flag);
-        break;
+        return Fail("CVode failed at t = " + std::to_string(reached) + ": " + FlagName(flag), end);
       }
-      if (!y_data.allFinite()) {
-        summary.message = "state became non-finite at t = " + std::to_string(t);
-        break;
+      if (flag != CV_TSTOP_RETURN && !State().allFinite()) {
+        return Fail("state became non-finite at t = " + std::to_string(reached), end);
       }
-      record(k, tout, y_data);
-      ++k;
+    } catch (const std::exception& e) {
+      Fail(e.what(), end);
     }
-    harvest();
-  } catch (const std::exception& e) {
-    if (recorder.callback_error()) throw;  // the caller's sink or progress, not a solver failure
-    summary.message = e.what();
   }
-  summary.steps = steps;
-  summary.rhs_evaluations = rhs;
-  summary.jacobian_evaluations = jacs;
-  summary.success = summary.message.empty();
-  summary.wall_time_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  return result;
+
+  void EventMotion(Eigen::VectorXd* z, std::vector<Eigen::VectorXd>* derivatives) override {
+    *z = Augmented(t_);
+    const Eigen::MatrixXd m = model_.SystemMatrix(phases_);
+    derivatives->resize(2);
+    (*derivatives)[0] = m * *z;
+    (*derivatives)[1] = m * (*derivatives)[0];
+  }
+
+  void Switch(const Phases& phases, double t) override {
+    phases_ = phases;
+    Configure();
+    Restart(t);
+  }
+
+  void ApplyBreakpoint(double breakpoint, double t) override {
+    const Scene& scene = model_.reduced_scene();
+    for (int s = 0; s < nw_ - 1; ++s) {
+      problem_.w0[1 + s] = scene.torques[s].ValueAt(breakpoint);
+      problem_.slope[1 + s] = scene.torques[s].SlopeAt(breakpoint);
+    }
+    problem_.t_segment = t;
+    Restart(t);
+  }
+
+  void Record(OutputRecorder* recorder, int k, double t_output) override {
+    recorder->Record(k, phases_, Augmented(t_output));
+  }
+
+  void Finish(SimulationSummary* summary) override {
+    if (summary->message.empty() && !failure_.empty()) summary->message = failure_;
+    Harvest();
+    summary->steps = steps_;
+    summary->rhs_evaluations = rhs_;
+    summary->jacobian_evaluations = jacobians_;
+  }
+
+ private:
+  Eigen::Map<Eigen::VectorXd> State() { return {N_VGetArrayPointer(y_.get()), nx_}; }
+  // [x; w; w'] at time t.
+  Eigen::VectorXd Augmented(double t) {
+    Eigen::VectorXd z(model_.augmented_size());
+    z << State(), problem_.Forcing(t), problem_.slope;
+    return z;
+  }
+  void Fail(const std::string& message, LegEnd* end) {
+    end->kind = LegEnd::Kind::kFailed;
+    end->message = message;
+  }
+  // Whether the set of ignored surfaces differs from the one in use.
+  bool Ignoring(const std::vector<char>* ignored) const {
+    if (ignored == nullptr) return !ignored_.empty();
+    return ignored_ != *ignored;
+  }
+  // The root functions of the current phases (less the ignored surfaces).
+  void Configure() {
+    model_.LinearPieces(phases_, &problem_.a, &problem_.b);
+    problem_.watched = model_.Watched(phases_);
+    if (!ignored_.empty()) {
+      std::erase_if(problem_.watched,
+                    [&](const Model::WatchedSurface& w) { return ignored_[w.index] != 0; });
+    }
+    const int count = static_cast<int>(problem_.watched.size());
+    problem_.rows.resize(count, nx_ + nw_);
+    problem_.margin.resize(count);
+    for (int r = 0; r < count; ++r) {
+      const Model::WatchedSurface& w = problem_.watched[r];
+      problem_.rows.row(r) = w.side * model_.surfaces().row(w.index).head(nx_ + nw_);
+      problem_.margin[r] =
+          kCrossingMargin *
+          (problem_.rows.row(r).head(nx_).cwiseAbs().dot(state_scale_) +
+           problem_.rows.row(r).tail(nw_).cwiseAbs().dot(problem_.w0.cwiseAbs().cwiseMax(1.0)));
+    }
+  }
+  void SetRoots() {
+    Check(CVodeRootInit(memory_.get(), static_cast<int>(problem_.watched.size()),
+                        problem_.watched.empty() ? nullptr : Roots),
+          "CVodeRootInit");
+  }
+  // Restarts CVODE at t from the current state (after a switch, a breakpoint, an escape); a
+  // failure ends the run at the next leg.
+  void Restart(double t) {
+    try {
+      Harvest();
+      Check(CVodeReInit(memory_.get(), t, y_.get()), "CVodeReInit");
+      SetRoots();
+      stop_ = std::numeric_limits<double>::quiet_NaN();  // set again before the next step
+      t_ = t;
+    } catch (const std::exception& e) {
+      if (failure_.empty()) failure_ = e.what();
+    }
+  }
+  // Adds the counters of the current CVODE run (since the last restart) to the totals.
+  void Harvest() {
+    void* mem = memory_.get();
+    if (mem == nullptr) return;
+    long value = 0;
+    CVodeGetNumSteps(mem, &value);
+    steps_ += value;
+    CVodeGetNumRhsEvals(mem, &value);
+    rhs_ += value;
+    CVodeGetNumJacEvals(mem, &value);
+    jacobians_ += value;
+  }
+
+  const Model& model_;
+  const SimulationOptions& options_;
+  const int nx_, nw_;
+  const double h_;
+  Problem problem_;
+  Eigen::VectorXd state_scale_;
+  Phases phases_;
+  std::vector<char> ignored_;  // empty: every watched surface is a root function
+  SundialsContext context_;
+  SundialsVector y_;
+  SundialsMatrix jacobian_;
+  SundialsLinearSolver solver_;
+  CvodeMemory memory_;
+  double t_ = 0.0;  // CVODE's time
+  double stop_ = std::numeric_limits<double>::quiet_NaN();
+  std::vector<int> roots_found_;
+  std::string failure_;  // from a restart
+  long steps_ = 0, rhs_ = 0, jacobians_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<ModeIntegrator> MakeCvodeIntegrator(const Model& model,
+                                                    const SimulationOptions& options) {
+  return std::make_unique<CvodeIntegrator>(model, options);
 }
 
 }  // namespace millkit::driveline

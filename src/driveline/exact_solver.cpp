@@ -1,4 +1,4 @@
-// Event-exact piecewise-linear solver (issue 2). See simulation.h for the contract.
+// Event-exact piecewise-linear integrator (issue 2). See simulation.h for the contract.
 //
 // Within one phase set the augmented ODE z' = M z is autonomous and linear. The solver carries z
 // and its derivative v = z' and steps in increment form (numerics/exp_phi.h):
@@ -32,16 +32,16 @@
 // transient has decayed; the short substeps that still do not clear get the Taylor search. The
 // cost is O(log ‖m‖ h) per step and per transient, the cache of phase data is bounded in bytes,
 // and a surface that never clears ends the run with a reason (kMaxStiffSubsteps), never a hang.
-// A degenerate switch, where events stop advancing time (a tiny gap pushed from rest: contact,
-// release and the damping cap meet at one point), is passed by stepping on blind to the
-// chattering surfaces for a short time (kEscapeFraction of h), then watching them again.
+// The run itself (output times, breakpoints, classification at events, the escape from a
+// degenerate switch, the summary) is the hybrid driver's (hybrid_driver.h); this file is its
+// per-phase-set integrator.
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <unordered_map>
 
+#include "driveline/hybrid_driver.h"
 #include "driveline/output_recorder.h"
 #include "millkit/driveline/simulation.h"
 #include "millkit/io/number_format.h"
@@ -66,10 +66,9 @@ constexpr double kEps = std::numeric_limits<double>::epsilon();
 // A surface that dips past zero by less than this fraction of its typical magnitude (times the
 // state's size in scaled units) has not crossed: roundoff, or a graze.
 constexpr double kCrossingTolerance = 1e-13;
-// Events closer in time than this many ulps of t count as "not advancing"; roots are located to
-// this resolution.
+// Roots are located to this many ulps of t (the hybrid driver's "events that do not advance time"
+// use the same figure).
 constexpr double kStallUlps = 64.0;
-constexpr int kMaxStalledEvents = 64;
 constexpr int kMaxRootIterations = 100;
 constexpr int kMaxTaylorTerms = 60;
 // Building [Φ; S] costs about as much as 10 Taylor steps; phase sets that last a few samples
@@ -97,11 +96,6 @@ constexpr double kLadderUlps = 4.0;
 constexpr long kMaxStiffSubsteps = 200'000;
 // And in the whole run (about 2.5 s on one core): a run that crawls ends with its reason.
 constexpr long kMaxStiffSubstepsPerRun = 20'000'000;
-// Escapes from a degenerate switch, each blind to the chattering surfaces for this fraction of
-// the step h, before the run gives up with "events do not advance time".
-constexpr int kMaxEscapes = 3;
-constexpr double kEscapeFraction[kMaxEscapes] = {1e-9, 1e-6, 1e-3};
-
 // Typical magnitude of each component of z: states from the model, forcing from the sources.
 // An input slope is scaled by at most value / h: a ramp shorter than the step h (a load written as
 // a near-step) then lasts one short step with a large scaled slope, instead of putting
@@ -440,7 +434,7 @@ bool Disjoint(const std::uint64_t* a, const std::uint64_t* b, int words) {
   return true;
 }
 
-class ExactIntegrator {
+class ExactIntegrator final : public ModeIntegrator {
  public:
   ExactIntegrator(const Model& model, const SimulationOptions& options)
       : model_(model),
@@ -451,9 +445,25 @@ class ExactIntegrator {
         active_stride_(PaddedMatrix::Padded(active_)),
         words_((model.augmented_size() + 63) / 64) {}
 
-  SimulationResult Run();
+  double time_scale() const override { return h_; }
+  std::string Start(const Eigen::VectorXd& z0, const Phases& phases,
+                    SimulationSummary* summary) override;
+  void Advance(double t, const Leg& leg, LegEnd* end) override { AdvanceLeg(t, leg, end); }
+  void EventMotion(Eigen::VectorXd* z, std::vector<Eigen::VectorXd>* derivatives) override;
+  void Switch(const Phases& phases, double t) override;
+  void ApplyBreakpoint(double breakpoint, double t) override;
+  void Record(OutputRecorder* recorder, int k, double /*t_output*/) override {
+    Record(recorder, k, y_.data(), end_.data() + data_->watched.size());
+  }
+  void Finish(SimulationSummary* /*summary*/) override {}
 
  private:
+  // Advance itself (a virtual function cannot be cloned per target; see MILLKIT_HOT).
+  void AdvanceLeg(double t, const Leg& leg, LegEnd* end);
+  // v, g0 and ‖v‖ from y in the current phases.
+  void Refresh();
+  // Whether model surface `index` is not watched (escaping a degenerate switch).
+  bool Ignored(int index) const { return ignored_ != nullptr && (*ignored_)[index] != 0; }
   PhaseData* Data(const Phases& phases);
   void BuildStep(PhaseData* data);
   // Sums the step's Taylor series from (z, v) over tau into series_; sets z1, v1 to its end.
@@ -505,19 +515,27 @@ class ExactIntegrator {
   const int active_;
   const int active_stride_;
   std::unordered_map<Phases, PhaseData> cache_;
-  // While escaping a degenerate switch: the surfaces not watched (by model surface index).
-  bool escaping_ = false;
-  std::vector<char> ignored_;
-  Phases phases_;  // the current phases, for StiffAdvance's messages
+  // While escaping a degenerate switch: per model surface, 1 for one not watched; else null.
+  const std::vector<char>* ignored_ = nullptr;
+  Phases phases_;              // the current phases
+  PhaseData* data_ = nullptr;  // their data
+  SimulationSummary* summary_ = nullptr;
   long stiff_substeps_ = 0;
   size_t cache_bytes_ = 0;
   double h_ = 0.0;
   Eigen::VectorXd scale_, inverse_scale_;
-  SimulationResult result_;
   Series series_;
   std::vector<double> work_;
   std::vector<Polynomial> polynomials_;
-  std::vector<Model::KnownSide> known_;  // the side of the surface crossed at an event
+  // The state: scaled y and v = y' (padded with zeros), the same at the end of a step (or at an
+  // event), the watched surfaces at the step's start (g0_) and end (end_ holds [g; link
+  // torques]), their slopes (dg0_, dg1_) when a step needs them, and ‖v‖∞.
+  std::vector<double> y_, v_, y1_, v1_, g0_, dg0_, end_, dg1_, out_;
+  double v_norm_ = 0.0;
+  Eigen::VectorXd unscaled_;
+  std::vector<std::uint64_t> moving_scratch_;
+  std::vector<int> candidates_;
+  std::vector<double> tolerance_, slack_;
   // Work space of Data().
   const int words_;  // 64-bit words of a component mask
   Eigen::MatrixXd m_scratch_, observe_scratch_;
@@ -629,7 +647,7 @@ void ExactIntegrator::BuildStep(PhaseData* data) {
   step.middleRows(as, a) = s;
   data->step.Assign(step);
   data->has_step = true;
-  ++result_.summary.phase_sets;
+  ++summary_->phase_sets;
   if (!options_.estimate_error) return;
   // The same step along another rounding path (one more halving and doubling): the difference
   // estimates a step's roundoff, z's through Φ v (‖v‖ <= ‖m‖∞ ‖z‖), v's through S and one more
@@ -683,7 +701,7 @@ void ExactIntegrator::BuildLadder(PhaseData* data) {
   const size_t bytes = sizeof(double) * static_cast<size_t>(search + 1) * 2 * as * a;
   data->bytes += bytes;
   cache_bytes_ += bytes;
-  ++result_.summary.phase_sets;
+  ++summary_->phase_sets;
 }
 
 bool ExactIntegrator::StaticSurface(PhaseData* data, int w, const double* v) {
@@ -704,7 +722,7 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
                                    const double* v, const double* g0, double* y1, double* v1,
                                    double* end, double* tau_event, int* crossed) {
   if (data->ladder.empty()) BuildLadder(data);
-  SimulationSummary& summary = result_.summary;
+  SimulationSummary& summary = *summary_;
   const int count = static_cast<int>(data->watched.size());
   const int search = static_cast<int>(data->ladder.size()) - 1;
   std::vector<double>&ys = stiff_y_, &vs = stiff_v_, &gs = stiff_g_, &acc = stiff_a_,
@@ -777,7 +795,7 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
       const double lower = std::min(gs[w], end[w]);
       if (lower - data->row_norm[w] * chord + stiff_tolerance_[w] >= 0.0) continue;
       if (end[w] >= -stiff_tolerance_[w] && StaticSurface(data, w, vs.data())) continue;
-      if (escaping_ && ignored_[data->watched[w].index]) continue;
+      if (Ignored(data->watched[w].index)) continue;
       stiff_candidates_.push_back(w);
     }
     ++summary.steps;
@@ -947,15 +965,10 @@ MILLKIT_HOT void ExactIntegrator::Record(OutputRecorder* recorder, int k, const 
   recorder->Commit(k, torque);
 }
 
-MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
-  const auto started = std::chrono::steady_clock::now();
+std::string ExactIntegrator::Start(const Eigen::VectorXd& z0, const Phases& phases,
+                                   SimulationSummary* summary) {
+  summary_ = summary;
   const Scene& scene = model_.reduced_scene();  // outputs convert back in the recorder
-  SimulationSummary& summary = result_.summary;
-  summary.solver = "exact";
-  summary.reduction = model_.reduction().report;
-  OutputRecorder recorder(model_, options_, &result_);
-  const OutputGrid& times = recorder.times();
-  const int samples = recorder.size();
   h_ = CachedStepLength(scene, options_);
   scale_ = AugmentedScale(model_, h_);
   BalanceScale(model_, &scale_);
@@ -968,293 +981,224 @@ MILLKIT_HOT SimulationResult ExactIntegrator::Run() {
     const int f = model_.FlexibleIndexOf(l);
     twist_index_.push_back(f >= 0 ? model_.TwistIndex(f) : -1);
   }
-
-  Eigen::VectorXd z0 = model_.InitialState();
-  if (options_.initial_state) {
-    z0.head(model_.state_size()) = options_.initial_state->head(model_.state_size());
-  }
-  Phases phases = options_.initial_state ? model_.InitialPhases(z0) : model_.InitialPhases();
-  PhaseData* data = Data(phases);
-  const std::vector<double> breakpoints = scene.InputBreakpoints();
-  size_t next_breakpoint = 0;
+  phases_ = phases;
+  data_ = Data(phases_);
 
   // Scaled state y and its derivative v (padded with zeros), the same at the end of a step, and
-  // the watched surfaces' values at the step's start (g0) and end (`end` holds [g; link
+  // the watched surfaces' values at the step's start (g0) and end (`end_` holds [g; link
   // torques]); their slopes (dg0, dg1) only when a step needs them.
   const int surfaces = model_.surface_count();
   const int max_ld = PaddedMatrix::Padded(2 * stride_ + surfaces + links);
-  std::vector<double> y(stride_, 0.0), v(stride_, 0.0), y1(stride_, 0.0), v1(stride_, 0.0);
-  std::vector<double> g0(max_ld), dg0(max_ld), end(max_ld), dg1(max_ld), out(max_ld);
-  for (int i = 0; i < n_; ++i) y[i] = z0[i] / scale_[i];
-  Eigen::VectorXd unscaled(n_);
-  std::vector<Eigen::VectorXd> derivatives;
-  std::vector<std::uint64_t> moving(words_);
-  double v_norm = 0.0;
-  auto refresh = [&] {  // v, g0 and ‖v‖ from y in the current phases
-    data->m_padded.Apply(y.data(), v.data());
-    data->rows.Apply(y.data(), g0.data());
-    v_norm = numerics::MaxAbsPadded(v.data(), stride_);
+  y_.assign(stride_, 0.0);
+  v_.assign(stride_, 0.0);
+  y1_.assign(stride_, 0.0);
+  v1_.assign(stride_, 0.0);
+  for (auto* vector : {&g0_, &dg0_, &end_, &dg1_, &out_}) vector->assign(max_ld, 0.0);
+  for (int i = 0; i < n_; ++i) y_[i] = z0[i] / scale_[i];
+  unscaled_.resize(n_);
+  moving_scratch_.assign(words_, 0);
+  slack_.assign(surfaces, 0.0);
+  Refresh();
+  data_->observe.Apply(y_.data(), end_.data());
+  return {};
+}
+
+void ExactIntegrator::Refresh() {  // v, g0 and ‖v‖ from y in the current phases
+  data_->m_padded.Apply(y_.data(), v_.data());
+  data_->rows.Apply(y_.data(), g0_.data());
+  v_norm_ = numerics::MaxAbsPadded(v_.data(), stride_);
+}
+
+MILLKIT_HOT void ExactIntegrator::AdvanceLeg(double t, const Leg& leg, LegEnd* leg_end) {
+  PhaseData* data = data_;
+  std::vector<double>&y = y_, &v = v_, &y1 = y1_, &v1 = v1_, &g0 = g0_, &dg0 = dg0_, &end = end_,
+  &dg1 = dg1_, &out = out_;
+  ignored_ = leg.ignored;
+  const double t_grid = leg.output_time;
+  const double target = leg.target;
+  const double tau = target - t;
+  // The cached step serves a step between output times whose gap is h to roundoff of the times
+  // themselves (the state lands a few ulps of t off: as exact as t can be stated).
+  const bool full_step = leg.from_output && leg.at_output &&
+                         std::abs(tau - h_) <= 8 * kEps * std::max(std::abs(t_grid), h_);
+  const int count = static_cast<int>(data->watched.size());
+  auto fail = [&](std::string message) {
+    leg_end->kind = LegEnd::Kind::kFailed;
+    leg_end->message = std::move(message);
   };
-  refresh();
-
-  double t = 0.0;
-  bool on_grid = true;  // t is exactly the previous output time
-  long stalled = 0;
-  // Escapes from a degenerate switch (see the event handling below).
-  std::vector<int> stall_surfaces;
-  ignored_.assign(surfaces, 0);
-  double escape_until = -1.0;
-  int escapes = 0;
-  std::vector<int> candidates;
-  std::vector<double> tolerance, slack(surfaces);
-  int k = 0;
-  if (times.front() == 0.0) {
-    data->observe.Apply(y.data(), end.data());
-    Record(&recorder, 0, y.data(), end.data() + data->watched.size());
-    k = 1;
+  // event: a switching event was located within the step; y1, v1 hold the state there.
+  double tau_event = 0.0;
+  int crossed = -1;
+  bool event = false;
+  if (data->norm_inf * tau > kMaxTaylorPieces) {
+    event = StiffAdvance(data, t, tau, y.data(), v.data(), g0.data(), y1.data(), v1.data(),
+                         end.data(), &tau_event, &crossed);
+    if (!summary_->message.empty()) return fail(summary_->message);
+    if (!event && !std::isfinite(numerics::MaxAbsPadded(v1.data(), active_stride_))) {
+      return fail("state became non-finite at t = " + std::to_string(t));
+    }
   } else {
-    on_grid = false;
+    if (full_step && !data->has_step && ++data->full_steps >= kStepsBeforeCaching) {
+      BuildStep(data);
+    }
+    bool expanded = false;
+    double growth = data->growth;
+    if (full_step && data->has_step) {
+      data->step.Apply(v.data(), out.data());
+      for (int i = 0; i < active_stride_; ++i) {
+        y1[i] = y[i] + out[i];
+        v1[i] = out[active_stride_ + i];
+      }
+      for (int i = active_stride_; i < stride_; ++i) y1[i] = y[i];  // (v1 stays zero there)
+      summary_->error_estimate += data->defect;
+    } else {
+      ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
+      expanded = true;
+      growth = std::exp(std::min(data->norm_inf * tau, 700.0));
+    }
+    ++summary_->steps;
+    // Non-finite states show in v first (y1 = y + Φ v).
+    const double v1_norm = numerics::MaxAbsPadded(v1.data(), active_stride_);  // zero beyond
+    if (!std::isfinite(v1_norm)) return fail("state became non-finite at t = " + std::to_string(t));
+    data->observe.Apply(y1.data(), end.data());
+
+    // Which watched surfaces can cross within the step: the bounds first, exact work after. The
+    // surfaces are signed (>= 0 on the watched side). The first pass is branch-free over all of
+    // them with the smallest tolerance (state size 1): the chord between the ends is off g by at
+    // most max|g''| τ²/8. The surfaces it does not clear get their slopes and the tighter tiers.
+    const double l_factor = growth * v_norm_ * tau * tau * 0.125;
+    const double c_factor = growth * v_norm_ * tau * tau * tau * tau * (1.0 / 24.0);
+    double least = 0.0;
+    {
+      const double* __restrict a0 = g0.data();
+      const double* __restrict a1 = end.data();
+      const double* __restrict bound2 = data->bound2.data();
+      const double* __restrict tol = data->tolerance.data();
+      double* __restrict out_slack = slack_.data();
+      for (int w = 0; w < count; ++w) {
+        const double lower = a0[w] < a1[w] ? a0[w] : a1[w];
+        out_slack[w] = lower - bound2[w] * l_factor + tol[w];
+        least = out_slack[w] < least ? out_slack[w] : least;
+      }
+    }
+    const bool any = least < 0.0;
+    candidates_.clear();
+    if (any) {
+      data->rows.Apply(v.data(), dg0.data());
+      data->rows.Apply(v1.data(), dg1.data());
+      Tolerances(*data, y.data(), y1.data(), &tolerance_);
+      bool moving_known = false;
+      tolerance_.resize(count);
+      for (int w = 0; w < count; ++w) {
+        if (slack_[w] >= 0.0) continue;
+        if (Ignored(data->watched[w].index)) continue;
+        if (end[w] < -tolerance_[w]) {
+          candidates_.push_back(w);
+          continue;
+        }
+        const double a0 = g0[w], a1 = end[w], b0 = dg0[w] * tau, b1 = dg1[w] * tau;
+        const double c = data->bound3[w] * c_factor;
+        if (QuickMinimum(a0, b0, a1, b1, c) >= -tolerance_[w]) continue;
+        if (!moving_known) {
+          std::fill(moving_scratch_.begin(), moving_scratch_.end(), 0);
+          for (int i = 0; i < n_; ++i) {
+            if (v[i] != 0.0) moving_scratch_[i / 64] |= std::uint64_t{1} << (i % 64);
+          }
+          moving_known = true;
+        }
+        // g is constant, and a1 >= −tolerance.
+        if (data->reach.empty()) {
+          Eigen::MatrixXd& m = m_scratch_;
+          data->m_padded.CopyTo(&m);
+          data->rows.CopyTo(&observe_scratch_);
+          Reach(m, observe_scratch_, words_, &inputs_scratch_, &stack_scratch_, &data->reach);
+        }
+        if (Disjoint(moving_scratch_.data(), data->reach.data() + static_cast<size_t>(w) * words_,
+                     words_)) {
+          continue;
+        }
+        if (EnvelopeMinimum(a0, b0, a1, b1, c) < -tolerance_[w]) candidates_.push_back(w);
+      }
+    }
+
+    if (!candidates_.empty()) {
+      if (!expanded) ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
+      const double resolution_s = kStallUlps * kEps * std::max(std::abs(t) + tau, h_) / series_.dt;
+      int piece = 0;
+      double s = 0.0;
+      if (FindEvent(*data, candidates_, tolerance_, resolution_s, &piece, &s, &crossed)) {
+        tau_event = (piece + s) * series_.dt;
+        EvaluateSeries(piece, s, y1.data(), v1.data());
+        event = true;
+      } else if (!expanded) {  // the series' end replaced the cached step's: observe that one
+        data->observe.Apply(y1.data(), end.data());
+      }
+    }
+  }  // Taylor or cached step
+
+  if (event) {
+    const Model::WatchedSurface surface = data->watched[crossed];
+    leg_end->kind = LegEnd::Kind::kEvent;
+    leg_end->t = t + tau_event;
+    leg_end->elapsed = tau_event;
+    leg_end->crossed.assign(1, {surface.index, -surface.side});
+    return;
   }
+  y.swap(y1);
+  v.swap(v1);
+  Copy(end.data(), count, g0.data());
+  v_norm_ = numerics::MaxAbsPadded(v.data(), active_stride_);
+  leg_end->kind = LegEnd::Kind::kReached;
+  leg_end->t = target;
+  leg_end->elapsed = tau;
+}
 
-  while (k < samples) {
-    const double t_grid = times[k];
-    double target = t_grid;
-    bool at_breakpoint = false;
-    if (next_breakpoint < breakpoints.size() &&
-        breakpoints[next_breakpoint] <= t_grid * (1.0 + 4 * kEps)) {
-      target = std::min(breakpoints[next_breakpoint], t_grid);
-      at_breakpoint = true;
+void ExactIntegrator::EventMotion(Eigen::VectorXd* z, std::vector<Eigen::VectorXd>* derivatives) {
+  // Sides of the other surfaces from the motion before the event (Model::Classify): its
+  // derivatives z', z'', ... up to the state's size, as a motion from rest may start at any order.
+  z->resize(n_);
+  for (int i = 0; i < n_; ++i) (*z)[i] = scale_[i] * y1_[i];
+  derivatives->resize(n_);
+  std::copy(v1_.begin(), v1_.end(), out_.begin());
+  for (int order = 0; order < n_; ++order) {
+    if (order > 0) {
+      std::fill(dg1_.begin(), dg1_.end(), 0.0);
+      data_->m_active.Apply(out_.data(), dg1_.data());
+      std::copy(dg1_.begin(), dg1_.begin() + active_stride_, out_.begin());
     }
-    bool at_grid = target >= t_grid * (1.0 - 4 * kEps);
-    if (at_grid) target = t_grid;
-    escaping_ = escape_until > t;
-    const bool escape_ends = escaping_ && escape_until < target;
-    if (escape_ends) {
-      target = escape_until;
-      at_grid = false;
-      at_breakpoint = false;
-    }
-    const double tau = target - t;
-    // The cached step serves a step between output times whose gap is h to roundoff of the times
-    // themselves (the state lands a few ulps of t off: as exact as t can be stated).
-    const bool full_step =
-        on_grid && at_grid && std::abs(tau - h_) <= 8 * kEps * std::max(std::abs(t_grid), h_);
-    const int count = static_cast<int>(data->watched.size());
-    // event: a switching event was located within the step; y1, v1 hold the state there.
-    double tau_event = 0.0;
-    int crossed = -1;
-    bool event = false;
-    if (data->norm_inf * tau > kMaxTaylorPieces) {
-      phases_ = phases;
-      event = StiffAdvance(data, t, tau, y.data(), v.data(), g0.data(), y1.data(), v1.data(),
-                           end.data(), &tau_event, &crossed);
-      if (!summary.message.empty()) break;
-      if (!event && !std::isfinite(numerics::MaxAbsPadded(v1.data(), active_stride_))) {
-        summary.message = "state became non-finite at t = " + std::to_string(t);
-        break;
-      }
-    } else {
-      if (full_step && !data->has_step && ++data->full_steps >= kStepsBeforeCaching) {
-        BuildStep(data);
-      }
-      bool expanded = false;
-      double growth = data->growth;
-      if (full_step && data->has_step) {
-        data->step.Apply(v.data(), out.data());
-        for (int i = 0; i < active_stride_; ++i) {
-          y1[i] = y[i] + out[i];
-          v1[i] = out[active_stride_ + i];
-        }
-        for (int i = active_stride_; i < stride_; ++i) y1[i] = y[i];  // (v1 stays zero there)
-        summary.error_estimate += data->defect;
-      } else {
-        ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
-        expanded = true;
-        growth = std::exp(std::min(data->norm_inf * tau, 700.0));
-      }
-      ++summary.steps;
-      // Non-finite states show in v first (y1 = y + Φ v).
-      const double v1_norm = numerics::MaxAbsPadded(v1.data(), active_stride_);  // zero beyond
-      if (!std::isfinite(v1_norm)) {
-        summary.message = "state became non-finite at t = " + std::to_string(t);
-        break;
-      }
-      data->observe.Apply(y1.data(), end.data());
-
-      // Which watched surfaces can cross within the step: the bounds first, exact work after. The
-      // surfaces are signed (>= 0 on the watched side). The first pass is branch-free over all of
-      // them with the smallest tolerance (state size 1): the chord between the ends is off g by at
-      // most max|g''| τ²/8. The surfaces it does not clear get their slopes and the tighter tiers.
-      const double l_factor = growth * v_norm * tau * tau * 0.125;
-      const double c_factor = growth * v_norm * tau * tau * tau * tau * (1.0 / 24.0);
-      double least = 0.0;
-      {
-        const double* __restrict a0 = g0.data();
-        const double* __restrict a1 = end.data();
-        const double* __restrict bound2 = data->bound2.data();
-        const double* __restrict tol = data->tolerance.data();
-        double* __restrict out_slack = slack.data();
-        for (int w = 0; w < count; ++w) {
-          const double lower = a0[w] < a1[w] ? a0[w] : a1[w];
-          out_slack[w] = lower - bound2[w] * l_factor + tol[w];
-          least = out_slack[w] < least ? out_slack[w] : least;
-        }
-      }
-      const bool any = least < 0.0;
-      candidates.clear();
-      if (any) {
-        data->rows.Apply(v.data(), dg0.data());
-        data->rows.Apply(v1.data(), dg1.data());
-        Tolerances(*data, y.data(), y1.data(), &tolerance);
-        bool moving_known = false;
-        tolerance.resize(count);
-        for (int w = 0; w < count; ++w) {
-          if (slack[w] >= 0.0) continue;
-          if (escaping_ && ignored_[data->watched[w].index]) continue;
-          if (end[w] < -tolerance[w]) {
-            candidates.push_back(w);
-            continue;
-          }
-          const double a0 = g0[w], a1 = end[w], b0 = dg0[w] * tau, b1 = dg1[w] * tau;
-          const double c = data->bound3[w] * c_factor;
-          if (QuickMinimum(a0, b0, a1, b1, c) >= -tolerance[w]) continue;
-          if (!moving_known) {
-            std::fill(moving.begin(), moving.end(), 0);
-            for (int i = 0; i < n_; ++i) {
-              if (v[i] != 0.0) moving[i / 64] |= std::uint64_t{1} << (i % 64);
-            }
-            moving_known = true;
-          }
-          // g is constant, and a1 >= −tolerance.
-          if (data->reach.empty()) {
-            Eigen::MatrixXd& m = m_scratch_;
-            data->m_padded.CopyTo(&m);
-            data->rows.CopyTo(&observe_scratch_);
-            Reach(m, observe_scratch_, words_, &inputs_scratch_, &stack_scratch_, &data->reach);
-          }
-          if (Disjoint(moving.data(), data->reach.data() + static_cast<size_t>(w) * words_,
-                       words_)) {
-            continue;
-          }
-          if (EnvelopeMinimum(a0, b0, a1, b1, c) < -tolerance[w]) candidates.push_back(w);
-        }
-      }
-
-      if (!candidates.empty()) {
-        if (!expanded) ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
-        const double resolution_s =
-            kStallUlps * kEps * std::max(std::abs(t) + tau, h_) / series_.dt;
-        int piece = 0;
-        double s = 0.0;
-        if (FindEvent(*data, candidates, tolerance, resolution_s, &piece, &s, &crossed)) {
-          tau_event = (piece + s) * series_.dt;
-          EvaluateSeries(piece, s, y1.data(), v1.data());
-          event = true;
-        } else if (!expanded) {  // the series' end replaced the cached step's: observe that one
-          data->observe.Apply(y1.data(), end.data());
-        }
-      }
-    }  // Taylor or cached step
-
-    if (event) {
-      // Sides of the other surfaces from the motion before the event (Model::Classify): its
-      // derivatives z', z'', ... up to the state's size, as a motion from rest may start at
-      // any order.
-      for (int i = 0; i < n_; ++i) unscaled[i] = scale_[i] * y1[i];
-      derivatives.resize(n_);
-      std::copy(v1.begin(), v1.end(), out.begin());
-      for (int order = 0; order < n_; ++order) {
-        if (order > 0) {
-          std::fill(dg1.begin(), dg1.end(), 0.0);
-          data->m_active.Apply(out.data(), dg1.data());
-          std::copy(dg1.begin(), dg1.begin() + active_stride_, out.begin());
-        }
-        derivatives[order].resize(n_);
-        for (int i = 0; i < n_; ++i) derivatives[order][i] = scale_[i] * out[i];
-        if (order >= 2 && derivatives[order].cwiseAbs().maxCoeff() == 0.0) break;
-      }
-      const Model::WatchedSurface surface = data->watched[crossed];
-      known_.assign(1, {surface.index, -surface.side});
-      const Phases next = model_.Classify(unscaled, derivatives, known_);
-      if (tau_event <= kStallUlps * kEps * std::max(std::abs(t), h_)) {
-        stall_surfaces.push_back(surface.index);
-        if (++stalled > kMaxStalledEvents) {
-          if (escapes >= kMaxEscapes) {
-            summary.message = "events do not advance time at t = " + std::to_string(t) +
-                              " (chattering between " + model_.DescribePhases(phases) + " and " +
-                              model_.DescribePhases(next) + ")";
-            break;
-          }
-          // A degenerate switch (a link pushed from rest: contact, release and the damping
-          // cap meet at one point, and the motion starts at a high order): step on for a
-          // short time in the phases reached, blind to the surfaces that chattered, as CVODE
-          // is to a root function that starts at zero, then watch them again.
-          escape_until = t + tau_event + h_ * kEscapeFraction[escapes];
-          ++escapes;
-          for (int index : stall_surfaces) ignored_[index] = 1;
-          stalled = 0;
-        }
-      } else {
-        stalled = 0;
-        stall_surfaces.clear();
-      }
-      t += tau_event;
-      summary.event_times_s.push_back(t);
-      y.swap(y1);
-      phases = next;
-      data = Data(phases);
-      refresh();
-      on_grid = false;
-      if (++summary.events > options_.max_events) {
-        summary.message = "more than max_events = " + std::to_string(options_.max_events) +
-                          " switching events by t = " + std::to_string(t);
-        break;
-      }
-      continue;
-    }
-
-    y.swap(y1);
-    v.swap(v1);
-    Copy(end.data(), count, g0.data());
-    v_norm = numerics::MaxAbsPadded(v.data(), active_stride_);
-    t = target;
-    if (escape_ends) {  // watch every surface again
-      std::fill(ignored_.begin(), ignored_.end(), 0);
-      escape_until = -1.0;
-      escaping_ = false;
-      stall_surfaces.clear();
-    }
-    if (at_breakpoint) {
-      // Inputs from their right limit at the breakpoint itself: a breakpoint snapped onto a
-      // sample time a few ulps away must not be read as still inside the ramp before it.
-      for (int i = 0; i < n_; ++i) unscaled[i] = scale_[i] * y[i];
-      model_.SetForcing(breakpoints[next_breakpoint], &unscaled);
-      for (int i = 0; i < n_; ++i) y[i] = unscaled[i] / scale_[i];
-      refresh();
-      data->observe.Apply(y.data(), end.data());
-      ++next_breakpoint;
-    }
-    if (at_grid) {
-      on_grid = true;
-      Record(&recorder, k, y.data(), end.data() + count);
-      ++k;
-      if (!escaping_) escapes = 0;
-    } else {
-      on_grid = false;
+    Eigen::VectorXd& derivative = (*derivatives)[order];
+    derivative.resize(n_);
+    for (int i = 0; i < n_; ++i) derivative[i] = scale_[i] * out_[i];
+    if (order >= 2 && derivative.cwiseAbs().maxCoeff() == 0.0) {
+      // Every higher order is zero too: none may be left over from an earlier event.
+      derivatives->resize(order + 1);
+      break;
     }
   }
-  summary.success = summary.message.empty();
-  summary.wall_time_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  return std::move(result_);
+}
+
+void ExactIntegrator::Switch(const Phases& phases, double /*t*/) {
+  y_.swap(y1_);
+  phases_ = phases;
+  data_ = Data(phases_);
+  Refresh();
+}
+
+void ExactIntegrator::ApplyBreakpoint(double breakpoint, double /*t*/) {
+  // Inputs from their right limit at the breakpoint itself: a breakpoint snapped onto a sample
+  // time a few ulps away must not be read as still inside the ramp before it.
+  for (int i = 0; i < n_; ++i) unscaled_[i] = scale_[i] * y_[i];
+  model_.SetForcing(breakpoint, &unscaled_);
+  for (int i = 0; i < n_; ++i) y_[i] = unscaled_[i] / scale_[i];
+  Refresh();
+  data_->observe.Apply(y_.data(), end_.data());
 }
 
 }  // namespace
 
-SimulationResult SimulateExact(const Model& model, const SimulationOptions& options) {
-  options.Validate(model.scene());
-  ExactIntegrator integrator(model, options);
-  return integrator.Run();
+std::unique_ptr<ModeIntegrator> MakeExactIntegrator(const Model& model,
+                                                    const SimulationOptions& options) {
+  return std::make_unique<ExactIntegrator>(model, options);
 }
 
 }  // namespace millkit::driveline

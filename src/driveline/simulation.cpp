@@ -3,8 +3,11 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <sstream>
+#include <stdexcept>
 
+#include "driveline/hybrid_driver.h"
 #include "millkit/io/input_error.h"
 #include "millkit/io/number_format.h"
 
@@ -71,9 +74,82 @@ std::string SimulationSummary::BriefReport() const {
   return s.str();
 }
 
+namespace {
+
+struct SolverEntry {
+  SolverInfo info;
+  std::unique_ptr<ModeIntegrator> (*make)(const Model&, const SimulationOptions&);
+};
+
+const std::vector<SolverEntry>& Registry() {
+  static const std::vector<SolverEntry> registry = {
+      {{SolverKind::kExact, "exact",
+        "event-exact piecewise-linear propagation, error estimated per run (default)"},
+       MakeExactIntegrator},
+      {{SolverKind::kCvode, "cvode", "SUNDIALS CVODES (BDF) with root finding at the events"},
+       MakeCvodeIntegrator},
+  };
+  return registry;
+}
+
+const SolverEntry& EntryOf(SolverKind kind) {
+  for (const SolverEntry& entry : Registry()) {
+    if (entry.info.kind == kind) return entry;
+  }
+  throw std::logic_error("solver kind not in the registry");
+}
+
+SimulationResult Run(const Model& model, const SimulationOptions& options, SolverKind kind) {
+  options.Validate(model.scene());
+  const SolverEntry& entry = EntryOf(kind);
+  const std::unique_ptr<ModeIntegrator> integrator = entry.make(model, options);
+  return RunHybrid(model, options, entry.info.name, integrator.get());
+}
+
+}  // namespace
+
+const std::vector<SolverInfo>& Solvers() {
+  static const std::vector<SolverInfo> solvers = [] {
+    std::vector<SolverInfo> infos;
+    for (const SolverEntry& entry : Registry()) infos.push_back(entry.info);
+    return infos;
+  }();
+  return solvers;
+}
+
+const SolverInfo& SolverOf(SolverKind kind) {
+  for (const SolverInfo& info : Solvers()) {
+    if (info.kind == kind) return info;
+  }
+  throw std::logic_error("solver kind not in the registry");
+}
+
+const SolverInfo* FindSolver(std::string_view name) {
+  for (const SolverInfo& info : Solvers()) {
+    if (name == info.name) return &info;
+  }
+  return nullptr;
+}
+
+std::string SolverNames() {
+  std::string names;
+  for (const SolverInfo& info : Solvers()) {
+    if (!names.empty()) names += ", ";
+    names += info.name;
+  }
+  return names;
+}
+
 SimulationResult Simulate(const Model& model, const SimulationOptions& options) {
-  return options.solver == SolverKind::kExact ? SimulateExact(model, options)
-                                              : SimulateCvode(model, options);
+  return Run(model, options, options.solver);
+}
+
+SimulationResult SimulateExact(const Model& model, const SimulationOptions& options) {
+  return Run(model, options, SolverKind::kExact);
+}
+
+SimulationResult SimulateCvode(const Model& model, const SimulationOptions& options) {
+  return Run(model, options, SolverKind::kCvode);
 }
 
 SimulationResult SimulateCvodeChecked(const Model& model, const SimulationOptions& options) {

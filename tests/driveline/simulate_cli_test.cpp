@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "millkit/driveline/simulation.h"
 #include "support/run_cli.h"
 
 using namespace millkit::testing;
@@ -51,6 +52,7 @@ TEST_CASE("simulate rejects an unknown solver and a bad tolerance with exit 2",
   auto run = RunMillkit("simulate " + scene + out + " --solver euler");
   CHECK(run.exit_code == 2);
   CHECK_THAT(run.stderr_text, Contains("--solver"));
+  CHECK_THAT(run.stderr_text, Contains("exact, cvode"));
   run = RunMillkit("simulate " + scene + out + " --rtol 5");
   CHECK(run.exit_code == 2);
   CHECK_THAT(run.stderr_text, Contains("--rtol"));
@@ -197,4 +199,12 @@ TEST_CASE("simulate of a short scene prints no size warning and no progress line
   const auto run = RunMillkit("simulate " + kTwoMass + " --out '" + (dir / "r.csv").string() + "'");
   REQUIRE(run.exit_code == 0);
   CHECK_THAT(run.stderr_text, !Contains("warning") && !Contains("simulate:"));
+}
+
+TEST_CASE("simulate --help lists every registered solver with its description", "[cli]") {
+  const auto run = RunMillkit("simulate --help");
+  CHECK(run.exit_code == 0);
+  for (const millkit::driveline::SolverInfo& info : millkit::driveline::Solvers()) {
+    CHECK_THAT(run.stdout_text, Contains(std::string(info.name) + ":"));
+  }
 }

@@ -18,6 +18,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "millkit/driveline/model.h"
@@ -25,6 +26,20 @@
 namespace millkit::driveline {
 
 enum class SolverKind { kExact, kCvode };
+
+// The solvers, from one registry (in SolverKind order): each is a per-phase-set integrator run by
+// the same hybrid event loop (output times, breakpoints, event policy, summary).
+struct SolverInfo {
+  SolverKind kind;
+  const char* name;         // as `--solver` and configs spell it
+  const char* description;  // one line
+};
+const std::vector<SolverInfo>& Solvers();
+const SolverInfo& SolverOf(SolverKind kind);
+// The solver named `name`, or nullptr.
+const SolverInfo* FindSolver(std::string_view name);
+// "exact, cvode": the names, for messages and help.
+std::string SolverNames();
 
 // One output sample as SimulationOptions::sample_sink receives it: the values the sample matrices
 // of SimulationResult would hold, bit for bit, in each object's own units. The rows are valid only
