@@ -31,7 +31,7 @@ void FitOptions::Validate() const {
           "parameter_tolerance: must lie in (0, 1)");
   require(derivative_step > 0.0 && derivative_step < 0.01,
           "derivative_step: must lie in (0, 0.01)");
-  require(threads >= 1, "threads: must be >= 1");
+  require(threads >= 1 && threads <= 256, "threads: must lie in [1, 256]");
   require(first_stage_divisor >= 1.0 && first_stage_divisor <= 1e4,
           "first_stage_divisor: must lie in [1, 1e4]");
   require(continuation_ratio > 1.0 && continuation_ratio <= 1e4,

@@ -141,8 +141,11 @@ bool FitModel::Torques(const double* u, std::vector<Eigen::VectorXd>* m, int onl
     }
     // Blocks of a record are consecutive, in config channel order.
     const Block& first = blocks_[r * channels];
-    ++simulations_;
-    if (progress_) progress_(activity_, simulations_);
+    const long simulations = ++*simulations_;
+    if (progress_) {
+      const std::lock_guard lock(*progress_mutex_);
+      progress_(activity_, simulations);
+    }
     std::string why;
     if (!SimulateChannels(scene, records_[r], TimeOrigin(config_, records_[r]), config_.channels,
                           first.begin, first.end, &torques, &why)) {

@@ -18,7 +18,10 @@
 #include <ceres/ceres.h>
 
 #include <Eigen/Dense>
+#include <atomic>
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -26,6 +29,7 @@
 #include "millkit/driveline/scene.h"
 #include "millkit/identify/fit_config.h"
 #include "millkit/identify/oscillogram.h"
+#include "numerics/parallel_for.h"
 
 namespace millkit::identify {
 
@@ -80,13 +84,17 @@ class FitModel {
   const ChannelSpec& channel_spec(int b) const { return config_.channels[blocks_[b].channel]; }
   const Oscillogram& record(int r) const { return records_[r]; }
   const std::string& label(int r) const { return labels_[r]; }
-  long simulations() const { return simulations_; }
-  // What the fit is doing, for the progress callback (called after every simulation).
+  // Simulations so far, by this model and every copy of it (the count is shared).
+  long simulations() const { return *simulations_; }
+  // What the fit is doing, for the progress callback (called after every simulation, by this
+  // model and its copies, one call at a time).
   void set_progress(std::function<void(const std::string&, long)> progress) {
     progress_ = std::move(progress);
   }
   void set_activity(std::string activity) const { activity_ = std::move(activity); }
+  // Why the latest simulation that failed failed (a copy keeps its own).
   const std::string& last_failure() const { return last_failure_; }
+  void set_last_failure(std::string why) const { last_failure_ = std::move(why); }
 
   double Physical(int s, double u) const { return slots_[s].map.Physical(u); }
   double Unit(int s, double value) const { return slots_[s].map.Unit(value); }
@@ -131,7 +139,10 @@ class FitModel {
   std::vector<Block> blocks_;
   std::vector<double> onsets_;
   int residuals_ = 0;
-  mutable long simulations_ = 0;
+  // Copies of a model (the workers of a parallel search, identify/multistart.cpp) share the
+  // simulation count and call the progress callback under one lock.
+  std::shared_ptr<std::atomic<long>> simulations_ = std::make_shared<std::atomic<long>>(0);
+  std::shared_ptr<std::mutex> progress_mutex_ = std::make_shared<std::mutex>();
   std::function<void(const std::string&, long)> progress_;
   mutable std::string activity_ = "starting";
   mutable std::string last_failure_;
@@ -152,5 +163,27 @@ class ProjectedResidual : public ceres::CostFunction {
   bool central_;
   std::vector<int> frozen_;
 };
+
+// Runs task(worker_model, i) for every i in [0, count) on `threads` workers, each with its
+// own copy of `model` (its own stage; the simulation count and progress are shared), and returns
+// the results in index order: the same for any thread count. The model's last failure becomes
+// that of the highest index that had one, as a serial loop would leave it.
+template <typename Result, typename Task>
+std::vector<Result> MapOverCopies(const FitModel& model, int threads, int count, const Task& task) {
+  std::vector<Result> results(count);
+  std::vector<std::string> failures(count);
+  const int workers = std::clamp(threads, 1, std::max(count, 1));
+  std::vector<FitModel> copies(workers, model);
+  numerics::ParallelFor(count, workers, [&](int i, int worker) {
+    FitModel& copy = copies[worker];
+    copy.set_last_failure({});
+    results[i] = task(copy, i);
+    failures[i] = copy.last_failure();
+  });
+  for (auto& failure : failures) {
+    if (!failure.empty()) model.set_last_failure(std::move(failure));
+  }
+  return results;
+}
 
 }  // namespace millkit::identify

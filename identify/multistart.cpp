@@ -40,14 +40,20 @@ std::vector<std::vector<double>> ScanStarts(const FitModel& model, const FitConf
     for (int k = 0; k < points; ++k) column[k] = (k + uniform(random)) / points;
     std::shuffle(column.begin(), column.end(), random);
   }
-  std::vector<std::pair<double, std::vector<double>>> candidates;
-  for (int k = -1; k < points; ++k) {
+  // Point 0 is the start itself, point k + 1 the lattice's k-th.
+  const auto point = [&](int k) {
     std::vector<double> u = start;
     if (k >= 0) {
       for (size_t s = 0; s < scanned.size(); ++s) u[scanned[s]] = lattice[s][k];
     }
-    const double cost = model.ProjectedCost(u.data());
-    if (std::isfinite(cost)) candidates.emplace_back(cost, u);
+    return u;
+  };
+  const std::vector<double> costs = MapOverCopies<double>(
+      model, options.threads, points + 1,
+      [&](const FitModel& copy, int i) { return copy.ProjectedCost(point(i - 1).data()); });
+  std::vector<std::pair<double, std::vector<double>>> candidates;
+  for (int k = -1; k < points; ++k) {
+    if (std::isfinite(costs[k + 1])) candidates.emplace_back(costs[k + 1], point(k));
   }
   *evaluated = points;
   std::stable_sort(candidates.begin(), candidates.end(),
@@ -98,7 +104,7 @@ LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<do
   solver.function_tolerance = final_stage ? options.function_tolerance : 1e-6;
   solver.parameter_tolerance = final_stage ? options.parameter_tolerance : 1e-6;
   solver.gradient_tolerance = 1e-20;
-  solver.num_threads = options.threads;
+  solver.num_threads = 1;  // one residual block: the workers are the search's (options.threads)
   solver.logging_type = ceres::SILENT;
   ceres::Solve(solver, &problem, &fit.summary);
   fit.u.resize(phi.size());
@@ -137,10 +143,13 @@ std::vector<std::vector<double>> PreselectStarts(FitModel* model, const FitOptio
     if (!TimingParameter(model->free(i))) not_timing.push_back(i);
   }
   if (static_cast<int>(not_timing.size()) == model->parameters()) not_timing.clear();
+  std::vector<LocalFit> fits = MapOverCopies<LocalFit>(
+      *model, options.threads, static_cast<int>(points.size()), [&](const FitModel& copy, int i) {
+        return Refine(copy, options, points[i], false, options.stage_iterations,
+                      options.timing_only_stages > 0 ? not_timing : std::vector<int>{});
+      });
   std::vector<std::pair<double, std::vector<double>>> fitted;
-  for (const auto& u : points) {
-    LocalFit fit = Refine(*model, options, u, false, options.stage_iterations,
-                          options.timing_only_stages > 0 ? not_timing : std::vector<int>{});
+  for (auto& fit : fits) {
     if (fit.usable) fitted.emplace_back(fit.cost, std::move(fit.u));
   }
   model->SetStage(1.0);
@@ -173,34 +182,41 @@ std::vector<LocalFit> RefineStarts(FitModel* model, const FitOptions& options,
   }
   if (static_cast<int>(not_timing.size()) == model->parameters()) not_timing.clear();
 
-  std::vector<LocalFit> minima;
-  for (int s = 0; s < static_cast<int>(starts.size()); ++s) {
+  // Each start gives its continued fit and, when it comes near, its direct one.
+  const auto refine_start = [&](FitModel& copy, int s) {
+    std::vector<LocalFit> found;
     LocalFit fit;
     fit.u = starts[s];
     int stage_number = 0;
     for (const double divisor : stages) {
-      model->SetStage(divisor);
+      copy.SetStage(divisor);
       const bool timing_only = stage_number++ < options.timing_only_stages && divisor != 1.0;
-      fit = Refine(*model, options, fit.u, divisor == 1.0, options.stage_iterations,
+      fit = Refine(copy, options, fit.u, divisor == 1.0, options.stage_iterations,
                    timing_only ? not_timing : std::vector<int>{});
       if (!fit.usable) break;
     }
     fit.start = s;
     const double continued_cost = fit.cost;
-    minima.push_back(std::move(fit));
+    found.push_back(std::move(fit));
     // The same start refined on the whole window at once. A short stage sees the dampings
     // poorly, and noise can carry them into the basin of a neighbouring minimum of the whole
     // window; a fit from a start inside the right basin stays there. A capped try first: it is
     // finished only when it comes near the continued fit.
     if (stages.size() > 1) {
-      model->SetStage(1.0);
-      LocalFit direct = Refine(*model, options, starts[s], false, options.direct_try_iterations);
+      copy.SetStage(1.0);
+      LocalFit direct = Refine(copy, options, starts[s], false, options.direct_try_iterations);
       if (direct.usable && direct.cost < options.direct_retry_factor * continued_cost) {
-        direct = Refine(*model, options, direct.u, true, options.max_iterations);
+        direct = Refine(copy, options, direct.u, true, options.max_iterations);
         direct.start = s;
-        minima.push_back(std::move(direct));
+        found.push_back(std::move(direct));
       }
     }
+    return found;
+  };
+  std::vector<LocalFit> minima;
+  for (auto& found : MapOverCopies<std::vector<LocalFit>>(
+           *model, options.threads, static_cast<int>(starts.size()), refine_start)) {
+    for (auto& fit : found) minima.push_back(std::move(fit));
   }
   model->SetStage(1.0);
   return minima;
@@ -253,8 +269,12 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
   }
   // Basin hopping: a valley next door that every start missed.
   model->set_activity("basin hops");
-  for (auto& point : HopPoints(*model, minima[search.best].u, minima[search.best].cost, options)) {
-    LocalFit fit = Refine(*model, options, std::move(point), true, options.max_iterations);
+  const std::vector<std::vector<double>> hops =
+      HopPoints(*model, minima[search.best].u, minima[search.best].cost, options);
+  for (auto& fit : MapOverCopies<LocalFit>(
+           *model, options.threads, static_cast<int>(hops.size()), [&](const FitModel&copy, int i) {
+             return Refine(copy, options, hops[i], true, options.max_iterations);
+           })) {
     fit.start = -1;
     minima.push_back(std::move(fit));
   }

@@ -65,7 +65,9 @@ struct Search {
   std::vector<ProfileProbe> probes;  // the axis probes around the best minimum
 };
 
-// The whole search from the start point (unit coordinates):
+// The whole search from the start point (unit coordinates). The scan, the preselection, the
+// refinement of the starts, the hops and the axis probes each run on options.threads workers
+// (MapOverCopies).
 //  1. the scan, ranked on the first continuation stage, its best preselect_factor × starts
 //     through that stage's fit (PreselectStarts), the best distinct ones refined (RefineStarts);
 //  2. when the best minimum fails the misfit test (record noise per block), once more with

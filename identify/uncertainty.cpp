@@ -100,14 +100,17 @@ void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
 
 std::vector<ProfileProbe> ProfileProbes(const FitModel& model, const std::vector<double>& u,
                                         const FitOptions& options) {
+  const int points = options.profile_points;
+  std::vector<ProfileProbe> all = MapOverCopies<ProfileProbe>(
+      model, options.threads, model.parameters() * points, [&](const FitModel& copy, int i) {
+        ProfileProbe probe{i / points, u, 0.0};
+        probe.u[probe.slot] = (i % points + 0.5) / points;
+        probe.cost = copy.ProjectedCost(probe.u.data());
+        return probe;
+      });
   std::vector<ProfileProbe> probes;
-  for (int s = 0; s < model.parameters(); ++s) {
-    for (int k = 0; k < options.profile_points; ++k) {
-      ProfileProbe probe{s, u, 0.0};
-      probe.u[s] = (k + 0.5) / options.profile_points;
-      probe.cost = model.ProjectedCost(probe.u.data());
-      if (std::isfinite(probe.cost)) probes.push_back(std::move(probe));
-    }
+  for (auto& probe : all) {
+    if (std::isfinite(probe.cost)) probes.push_back(std::move(probe));
   }
   return probes;
 }

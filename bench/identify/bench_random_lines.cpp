@@ -119,6 +119,7 @@ int main(int argc, char** argv) {
   int cases = 200;
   unsigned long first_seed = 1;
   bool verbose = false;
+  int threads = 1;  // > 1: each case is fitted again on this many threads and compared
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
     if (flag == "--verbose") {
@@ -127,8 +128,11 @@ int main(int argc, char** argv) {
       cases = std::atoi(argv[++i]);
     } else if (flag == "--first-seed" && i + 1 < argc) {
       first_seed = std::strtoul(argv[++i], nullptr, 10);
+    } else if (flag == "--threads" && i + 1 < argc) {
+      threads = std::atoi(argv[++i]);
     } else {
-      std::fprintf(stderr, "usage: %s [--cases N] [--first-seed S] [--verbose]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--cases N] [--first-seed S] [--threads N] [--verbose]\n",
+                   argv[0]);
       return 2;
     }
   }
@@ -136,6 +140,10 @@ int main(int argc, char** argv) {
 
   std::vector<CaseResult> results;
   int crashed = 0;
+  // With --threads N: the wall time of each case on N threads, and the cases whose result differs
+  // in any bit from the one-thread fit (must be none).
+  std::vector<double> parallel_walls, serial_walls;
+  int parallel_differs = 0;
   for (int k = 0; k < cases; ++k) {
     const unsigned long seed = first_seed + static_cast<unsigned long>(k);
     try {
@@ -148,6 +156,25 @@ int main(int argc, char** argv) {
       const FitResult fit = Fit(c.prior, c.record, c.config, FitOptions{});
       r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       r.simulations = fit.summary.simulations;
+      if (threads > 1) {
+        FitOptions parallel_options;
+        parallel_options.threads = threads;
+        const auto parallel_start = std::chrono::steady_clock::now();
+        const FitResult parallel = Fit(c.prior, c.record, c.config, parallel_options);
+        parallel_walls.push_back(
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - parallel_start)
+                .count());
+        serial_walls.push_back(r.wall_s);
+        bool same = parallel.summary.cost == fit.summary.cost &&
+                    parallel.summary.verdict == fit.summary.verdict &&
+                    parallel.summary.simulations == fit.summary.simulations &&
+                    parallel.parameters.size() == fit.parameters.size();
+        for (size_t p = 0; same && p < fit.parameters.size(); ++p) {
+          same = parallel.parameters[p].value == fit.parameters[p].value &&
+                 parallel.parameters[p].standard_error == fit.parameters[p].standard_error;
+        }
+        if (!same) ++parallel_differs;
+      }
       r.cost = fit.summary.cost;
       r.verdict = Verdict(fit.summary);
       if (verbose) {
@@ -265,6 +292,17 @@ int main(int argc, char** argv) {
               free, Share(unidentifiable, free));
   std::printf("| wall time per fit, s: median / 95 %% / max | %.2f / %.2f / %.2f |\n",
               Quantile(walls, 0.5), Quantile(walls, 0.95), walls.empty() ? 0.0 : walls.back());
+  if (!parallel_walls.empty()) {
+    double serial_total = 0.0, parallel_total = 0.0;
+    for (double w : serial_walls) serial_total += w;
+    for (double w : parallel_walls) parallel_total += w;
+    std::sort(parallel_walls.begin(), parallel_walls.end());
+    std::printf(
+        "| the same fits on %d threads: median wall s / total speed-up / results "
+        "differing from 1 thread | %.2f / %.2fx / %d of %zu |\n",
+        threads, Quantile(parallel_walls, 0.5), serial_total / parallel_total, parallel_differs,
+        parallel_walls.size());
+  }
   std::printf("| simulations per fit: median / 95 %% | %ld / %ld |\n", Quantile(sims, 0.5),
               Quantile(sims, 0.95));
 

@@ -32,6 +32,7 @@ struct IdentifyArgs {
   std::string plot;
   std::string trace;
   std::string time_column;
+  int threads = 1;
   bool quiet = false;
 };
 
@@ -93,6 +94,11 @@ void RunIdentify(const IdentifyArgs& args) {
                                          : identify::LoadFitConfig(args.config, records, scene);
   identify::ApplySetValues(config, &scene);
   identify::FitOptions options;
+  if (args.threads < 1 || args.threads > 256) {
+    throw InputError("option --threads: must lie in [1, 256] (got " + std::to_string(args.threads) +
+                     ")");
+  }
+  options.threads = args.threads;
   ProgressLine progress(args.quiet ? nullptr : &std::cerr, "identify");
   options.progress = [&progress](const std::string& activity, long simulations) {
     progress.Update(activity + ", " + std::to_string(simulations) + " simulations");
@@ -156,6 +162,9 @@ void AddIdentifyCommand(CLI::App& app) {
   command->add_option("--out", args->out, "Fit result JSON (written atomically)")->required();
   command->add_option("--plot", args->plot, "SVG of measured vs fitted torque and residual");
   command->add_option("--trace", args->trace, "CSV of measured, fitted and residual per channel");
+  command->add_option("--threads", args->threads,
+                      "Worker threads of the search (scan, starts, hops, probes; default 1, "
+                      "1 ... 256). The result is the same for any count");
   command->add_flag("--quiet", args->quiet, "No progress line on stderr");
   command->callback([args] { RunIdentify(*args); });
 }

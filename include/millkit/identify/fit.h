@@ -65,7 +65,9 @@ struct FitOptions {
   double derivative_step = 1e-6;  // in unit coordinates (fraction of the bound range)
   // Central instead of forward differences while iterating (the covariance always uses central).
   bool central_differences = false;
-  int threads = 1;  // Ceres threads (the simulations themselves are serial)
+  // Worker threads of the search: the scan, the preselection, the starts, the hops and the axis
+  // probes run on this many threads. Every result is the same for any count.
+  int threads = 1;
 
   // Continuation: stages end at onset + span/d, d = first_stage_divisor, then divided by
   // continuation_ratio down to 1; the first timing_only_stages fit only gaps, gap positions and
