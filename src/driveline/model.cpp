@@ -20,9 +20,7 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kRoundoffZero = 1e-14;
 // A static torque this small against the loads is no torque (the link rests in its gap).
 constexpr double kNoStaticTorque = 1e-12;
-// Surfaces per backlash link and per drive (see model.h).
-constexpr int kLinkSurfaces = 6;
-enum Surface { kS0 = 0, kS1, kS2, kS3, kS4, kS5 };
+// Surfaces per drive (see model.h); a backlash link's six are the contact law's (backlash_law.h).
 enum DriveSurface { kD0 = 0, kD1 };
 
 // Masses on the `to` side of scene link `link` (the subtree B of SPEC §2.5).
@@ -59,21 +57,6 @@ double TwistFromTorque(const Link& link, double torque, double load_scale) {
 }
 
 }  // namespace
-
-LinkMode ModeOf(LinkPhase phase) {
-  switch (phase) {
-    case LinkPhase::kPosSpringDamper:
-      return LinkMode::kPosSpringDamper;
-    case LinkPhase::kPosDoubleSpring:
-      return LinkMode::kPosDoubleSpring;
-    case LinkPhase::kNegSpringDamper:
-      return LinkMode::kNegSpringDamper;
-    case LinkPhase::kNegDoubleSpring:
-      return LinkMode::kNegDoubleSpring;
-    default:
-      return LinkMode::kFree;
-  }
-}
 
 Reduction ReduceToBand(const Scene& scene) {
   const int n = static_cast<int>(scene.masses.size());
@@ -265,38 +248,30 @@ Model::Model(Scene scene) : user_scene_(std::move(scene)) {
 }
 
 void Model::BuildSurfaces() {
-  const int count = kLinkSurfaces * backlash_link_count() + (has_drive() ? 2 : 0);
+  const int count = kLinkSurfaceCount * backlash_link_count() + (has_drive() ? 2 : 0);
   surfaces_ = Eigen::MatrixXd::Zero(count, augmented_size());
   default_side_.assign(count, 1);
   const int one = nx_;  // column of the constant forcing 1
   for (int k = 0; k < backlash_link_count(); ++k) {
     const int f = backlash_links_[k];
     const Link& link = scene_.links[flexible_links_[f]];
-    const double c = link.stiffness_Nm_per_rad, d = link.damping_Nms_per_rad;
-    const double half = 0.5 * link.backlash_rad;
     const int a = SpeedIndex(reduction_.group_of_mass[link.from]);
     const int b = SpeedIndex(reduction_.group_of_mass[link.to]);
-    auto row = [&](int s) { return surfaces_.row(kLinkSurfaces * k + s); };
-    row(kS0)(f) = 1.0;
-    row(kS0)(one) = -half;
-    row(kS1)(f) = 1.0;
-    row(kS1)(one) = half;
-    // S2 = c(ψ − b/2) + d ψ',  S3 = d ψ' − c(ψ − b/2); S4, S5 the same with ψ + b/2.
-    for (int s : {kS2, kS3, kS4, kS5}) {
-      const double sign_c = (s == kS2 || s == kS4) ? 1.0 : -1.0;
-      const double offset = (s == kS2 || s == kS3) ? -half : half;
-      row(s)(f) = sign_c * c;
-      row(s)(one) = sign_c * c * offset;
-      row(s)(a) += d;
-      row(s)(b) -= d;
+    // The law's rows over (ψ, ψ', 1), with ψ' = ω_a − ω_b.
+    const auto rows =
+        LinkSurfaceRows(link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, link.backlash_rad);
+    for (int s = 0; s < kLinkSurfaceCount; ++s) {
+      auto row = surfaces_.row(kLinkSurfaceCount * k + s);
+      row(f) = rows[s].kpsi;
+      row(one) = rows[s].k0;
+      row(a) += rows[s].kv;
+      row(b) -= rows[s].kv;
+      default_side_[kLinkSurfaceCount * k + s] = kLinkDefaultSides[s];
     }
-    // The side without contact, or the spring-damper piece, when a surface cannot be told.
-    const int defaults[kLinkSurfaces] = {-1, 1, -1, -1, 1, 1};
-    for (int s = 0; s < kLinkSurfaces; ++s) default_side_[kLinkSurfaces * k + s] = defaults[s];
   }
   if (has_drive()) {
     const Drive& drive = *scene_.drive;
-    const int base = kLinkSurfaces * backlash_link_count();
+    const int base = kLinkSurfaceCount * backlash_link_count();
     const int w = SpeedIndex(reduction_.group_of_mass[drive.mass]);
     const int integral = nx_ - 2;
     for (int s : {kD0, kD1}) {
@@ -323,12 +298,7 @@ void Model::LinearPieces(const Phases& phases, Eigen::MatrixXd* a_out,
     const int wa = SpeedIndex(ga), wb = SpeedIndex(gb);
     a(f, wa) += 1.0;
     a(f, wb) -= 1.0;
-    LinkTorqueCoefficients k{link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, 0.0};
-    const int backlash = backlash_of_flexible_[f];
-    if (backlash >= 0) {
-      k = CoefficientsOf(ModeOf(static_cast<LinkPhase>(phases[backlash])),
-                         link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, link.backlash_rad);
-    }
+    const LinkTorqueCoefficients k = FlexibleLinkCoefficients(phases, f);
     // m = kψ ψ + kv (ω_a − ω_b) + k0; `from` gets −m, `to` gets +m.
     for (const auto& [row, sign] :
          {std::pair{wa, -1.0 / group_inertia_[ga]}, std::pair{wb, 1.0 / group_inertia_[gb]}}) {
@@ -382,47 +352,15 @@ Eigen::MatrixXd Model::SystemMatrix(const Phases& phases) const {
 
 std::vector<Model::WatchedSurface> Model::Watched(const Phases& phases) const {
   std::vector<WatchedSurface> watched;
-  const ContactLaw law = scene_.contact;
   for (int k = 0; k < backlash_link_count(); ++k) {
-    const int base = kLinkSurfaces * k;
-    auto add = [&](int s, int side) { watched.push_back({base + s, side}); };
-    switch (static_cast<LinkPhase>(phases[k])) {
-      case LinkPhase::kDead:
-        add(kS0, -1);
-        add(kS1, 1);
-        break;
-      case LinkPhase::kPosFree:
-        add(kS0, 1);
-        add(kS2, -1);
-        break;
-      case LinkPhase::kPosSpringDamper:
-        add(kS0, 1);
-        if (law != ContactLaw::kLinear) add(kS2, 1);
-        if (law == ContactLaw::kLimited) add(kS3, -1);
-        break;
-      case LinkPhase::kPosDoubleSpring:
-        add(kS0, 1);
-        add(kS2, 1);
-        add(kS3, 1);
-        break;
-      case LinkPhase::kNegFree:
-        add(kS1, -1);
-        add(kS4, 1);
-        break;
-      case LinkPhase::kNegSpringDamper:
-        add(kS1, -1);
-        if (law != ContactLaw::kLinear) add(kS4, -1);
-        if (law == ContactLaw::kLimited) add(kS5, 1);
-        break;
-      case LinkPhase::kNegDoubleSpring:
-        add(kS1, -1);
-        add(kS4, -1);
-        add(kS5, -1);
-        break;
+    const int base = kLinkSurfaceCount * k;
+    for (const LinkSurfaceSide& w :
+         WatchedSurfaces(scene_.contact, static_cast<LinkPhase>(phases[k]))) {
+      watched.push_back({base + w.surface, w.side});
     }
   }
   if (has_drive()) {
-    const int base = kLinkSurfaces * backlash_link_count();
+    const int base = kLinkSurfaceCount * backlash_link_count();
     switch (static_cast<DrivePhase>(phases.back())) {
       case DrivePhase::kLinear:
         watched.push_back({base + kD0, -1});
@@ -437,31 +375,6 @@ std::vector<Model::WatchedSurface> Model::Watched(const Phases& phases) const {
     }
   }
   return watched;
-}
-
-LinkPhase Model::PhaseFromSides(int k, const int* side) const {
-  const int* s = side + static_cast<std::ptrdiff_t>(kLinkSurfaces) * k;
-  switch (scene_.contact) {
-    case ContactLaw::kLinear:
-      if (s[kS0] > 0) return LinkPhase::kPosSpringDamper;
-      if (s[kS1] < 0) return LinkPhase::kNegSpringDamper;
-      return LinkPhase::kDead;
-    case ContactLaw::kNoPull:
-      if (s[kS0] > 0) return s[kS2] > 0 ? LinkPhase::kPosSpringDamper : LinkPhase::kPosFree;
-      if (s[kS1] < 0) return s[kS4] < 0 ? LinkPhase::kNegSpringDamper : LinkPhase::kNegFree;
-      return LinkPhase::kDead;
-    case ContactLaw::kLimited:
-      if (s[kS0] > 0) {
-        if (s[kS2] <= 0) return LinkPhase::kPosFree;
-        return s[kS3] < 0 ? LinkPhase::kPosSpringDamper : LinkPhase::kPosDoubleSpring;
-      }
-      if (s[kS1] < 0) {
-        if (s[kS4] >= 0) return LinkPhase::kNegFree;
-        return s[kS5] > 0 ? LinkPhase::kNegSpringDamper : LinkPhase::kNegDoubleSpring;
-      }
-      return LinkPhase::kDead;
-  }
-  return LinkPhase::kDead;
 }
 
 Phases Model::Classify(const Eigen::VectorXd& z, const Eigen::VectorXd& zdot,
@@ -521,10 +434,11 @@ Phases Model::Classify(const Eigen::VectorXd& z, const std::vector<Eigen::Vector
   }
   Phases phases(backlash_link_count() + (has_drive() ? 1 : 0), '\0');
   for (int k = 0; k < backlash_link_count(); ++k) {
-    phases[k] = static_cast<char>(PhaseFromSides(k, side));
+    const int* link_side = side + static_cast<std::ptrdiff_t>(kLinkSurfaceCount) * k;
+    phases[k] = static_cast<char>(PhaseFromSides(scene_.contact, link_side));
   }
   if (has_drive()) {
-    const int base = kLinkSurfaces * backlash_link_count();
+    const int base = kLinkSurfaceCount * backlash_link_count();
     DrivePhase drive = DrivePhase::kLinear;
     if (side[base + kD0] > 0) drive = DrivePhase::kSaturatedHigh;
     if (side[base + kD1] < 0) drive = DrivePhase::kSaturatedLow;
@@ -588,6 +502,15 @@ void Model::SetForcing(double t, Eigen::VectorXd* z) const {
   }
 }
 
+LinkTorqueCoefficients Model::FlexibleLinkCoefficients(const Phases& phases, int f) const {
+  const Link& link = scene_.links[flexible_links_[f]];
+  const int backlash = backlash_of_flexible_[f];
+  // A link without backlash is the plain spring-damper m = c ψ + d ψ'.
+  if (backlash < 0) return {link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, 0.0};
+  return CoefficientsOf(static_cast<LinkPhase>(phases[backlash]), link.stiffness_Nm_per_rad,
+                        link.damping_Nms_per_rad, link.backlash_rad);
+}
+
 void Model::Outputs(const Phases& phases, const Eigen::VectorXd& z, double* link_torque,
                     double* mass_speed, double* link_twist,
                     const Eigen::MatrixXd* system_matrix) const {
@@ -605,12 +528,7 @@ void Model::Outputs(const Phases& phases, const Eigen::VectorXd& z, double* link
     const Link& link = scene_.links[l];
     const double v = z[SpeedIndex(reduction_.group_of_mass[link.from])] -
                      z[SpeedIndex(reduction_.group_of_mass[link.to])];
-    LinkTorqueCoefficients k{link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, 0.0};
-    const int backlash = backlash_of_flexible_[f];
-    if (backlash >= 0) {
-      k = CoefficientsOf(ModeOf(static_cast<LinkPhase>(phases[backlash])),
-                         link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, link.backlash_rad);
-    }
+    const LinkTorqueCoefficients k = FlexibleLinkCoefficients(phases, f);
     flexible_torque[f] = k.kpsi * z[f] + k.kv * v + k.k0;
     link_torque[l] = flexible_torque[f];
     link_twist[l] = z[f];
@@ -668,12 +586,7 @@ Eigen::MatrixXd Model::LinkTorqueRows(const Phases& phases,
   for (int f = 0; f < flexible_link_count(); ++f) {
     const int l = flexible_links_[f];
     const Link& link = scene_.links[l];
-    LinkTorqueCoefficients k{link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, 0.0};
-    const int backlash = backlash_of_flexible_[f];
-    if (backlash >= 0) {
-      k = CoefficientsOf(ModeOf(static_cast<LinkPhase>(phases[backlash])),
-                         link.stiffness_Nm_per_rad, link.damping_Nms_per_rad, link.backlash_rad);
-    }
+    const LinkTorqueCoefficients k = FlexibleLinkCoefficients(phases, f);
     rows(l, f) += k.kpsi;
     rows(l, SpeedIndex(reduction_.group_of_mass[link.from])) += k.kv;
     rows(l, SpeedIndex(reduction_.group_of_mass[link.to])) -= k.kv;
@@ -707,12 +620,11 @@ Eigen::VectorXd Model::ComputeStateScale() const {
 }
 
 std::string Model::DescribePhases(const Phases& phases) const {
-  static const char* kLinkNames[] = {"dead", "+free", "+sd", "+2c", "-free", "-sd", "-2c"};
   static const char* kDriveNames[] = {"lin", "sat+", "sat-"};
   std::string text;
   for (int k = 0; k < backlash_link_count(); ++k) {
     text += (text.empty() ? "" : " ") + scene_.links[flexible_links_[backlash_links_[k]]].name +
-            ":" + kLinkNames[static_cast<unsigned char>(phases[k])];
+            ":" + LinkPhaseName(static_cast<LinkPhase>(phases[k]));
   }
   if (has_drive()) {
     text += std::string(text.empty() ? "" : " ") +

@@ -25,9 +25,9 @@ std::vector<double> ModalFrequenciesHz(const Scene& reduced, const Reduction& re
   for (size_t l = 0; l < reduced.links.size(); ++l) {
     if (reduction.link_rigid[l]) continue;
     const Link& link = reduced.links[l];
-    const bool doubled = gaps == GapStiffness::kStiffestPiece &&
-                         reduced.contact == ContactLaw::kLimited && link.backlash_rad > 0.0;
-    const double c = link.stiffness_Nm_per_rad * (doubled ? 2.0 : 1.0);
+    const bool stiffest = gaps == GapStiffness::kStiffestPiece && link.backlash_rad > 0.0;
+    const double c = stiffest ? StiffestPieceStiffness(reduced.contact, link.stiffness_Nm_per_rad)
+                              : link.stiffness_Nm_per_rad;
     const int a = reduction.group_of_mass[link.from], b = reduction.group_of_mass[link.to];
     k(a, a) += c;
     k(b, b) += c;

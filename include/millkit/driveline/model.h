@@ -8,8 +8,10 @@
 // has no drive states, and with [scene] band the links whose mode lies far above the band are
 // made rigid and their masses merged (SPEC §2.7).
 //
-// Switching surfaces are linear functionals g = G z; for a backlash link with τc± = c(ψ ∓ b/2):
-//   S0 = ψ − b/2, S1 = ψ + b/2, S2 = τc+ + d ψ', S3 = d ψ' − τc+, S4 = τc− + d ψ', S5 = d ψ' − τc−;
+// Switching surfaces are linear functionals g = G z; a backlash link has the six of its contact law
+// (LinkSurfaceRows, backlash_law.h) over ψ, ψ' = ω_from − ω_to and the constant 1, with
+// τc± = c(ψ ∓ b/2): S0 = ψ − b/2, S1 = ψ + b/2, S2 = τc+ + d ψ', S3 = d ψ' − τc+, S4 = τc− + d ψ',
+// S5 = d ψ' − τc−; the model assembles G, the watched lists and the phases from the law's answers;
 // for a drive: D0 = u − limit, D1 = u + limit with u = kp (ω_ref − ω) + ki ∫.
 #pragma once
 
@@ -18,27 +20,17 @@
 #include <string>
 #include <vector>
 
+#include "millkit/driveline/backlash_law.h"
 #include "millkit/driveline/scene.h"
 
 namespace millkit::driveline {
 
-// Where a backlash link is: region (dead zone, positive or negative flank) and the linear piece of
-// its law. Free phases carry m = 0.
-enum class LinkPhase : std::uint8_t {
-  kDead,
-  kPosFree,
-  kPosSpringDamper,
-  kPosDoubleSpring,
-  kNegFree,
-  kNegSpringDamper,
-  kNegDoubleSpring,
-};
+// The drive's phase; a backlash link's is its LinkPhase, the region of its contact law
+// (backlash_law.h).
 enum class DrivePhase : std::uint8_t { kLinear, kSaturatedHigh, kSaturatedLow };
 
 // One byte per backlash link, then one for the drive when there is one.
 using Phases = std::string;
-
-LinkMode ModeOf(LinkPhase phase);
 
 // What the band-limited reduction did.
 struct Reduction {
@@ -168,7 +160,9 @@ class Model {
   void BuildSurfaces();
   Eigen::VectorXd ComputeInitialState() const;
   Eigen::VectorXd ComputeStateScale() const;
-  LinkPhase PhaseFromSides(int k, const int* side) const;
+  // The torque coefficients of flexible link f in the given phases (the contact law's piece of a
+  // backlash link, the plain spring-damper otherwise).
+  LinkTorqueCoefficients FlexibleLinkCoefficients(const Phases& phases, int f) const;
 
   Scene user_scene_;  // as given
   Scene scene_;       // ReducedScene(user_scene_): what every member below works on
