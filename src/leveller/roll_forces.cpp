@@ -18,15 +18,24 @@ constexpr double kMPaToPa = 1e6;
 
 }  // namespace
 
-void ValidateStrip(const Strip& strip, const std::string& where) {
+std::vector<StripDefect> FindStripDefects(const Strip& strip) {
   const std::pair<const char*, double> fields[] = {{"yield_mpa", strip.yield_MPa},
                                                    {"youngs_mpa", strip.youngs_MPa},
                                                    {"thickness_mm", strip.thickness_mm},
                                                    {"width_mm", strip.width_mm}};
+  std::vector<StripDefect> defects;
   for (const auto& [name, value] : fields) {
     if (!(std::isfinite(value) && value > 0.0)) {
-      throw InputError(where + ": " + name + " must be > 0 (got " + FormatNumber(value) + ")");
+      defects.push_back({name, "must be > 0 (got " + FormatNumber(value) + ")"});
     }
+  }
+  return defects;
+}
+
+void ValidateStrip(const Strip& strip, const std::string& where) {
+  const std::vector<StripDefect> defects = FindStripDefects(strip);
+  if (!defects.empty()) {
+    throw InputError(where + ": " + defects.front().field + " " + defects.front().rule);
   }
 }
 
@@ -140,6 +149,7 @@ ForcesReport ComputeForces(const Strip& strip, const MachineData& machine,
   report.friction_torque_kNm = FrictionTorque_kNm(report.total_force_kN, machine);
   report.power_kW = DrivePower_kW(report.straightening_torque_kNm, report.total_force_kN, machine);
   report.warnings = CheckMachineLimits(report.forces_kN, report.power_kW, machine);
+  report.mw_given = options.mw_override_Nm.has_value();
   return report;
 }
 

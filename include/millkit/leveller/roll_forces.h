@@ -43,7 +43,17 @@ struct Strip {
   double width_mm = 1900.0;   // b
 };
 
-// Throws InputError "<where>: <field> must be > 0 (got x)" for a non-positive or non-finite field.
+// A field of a Strip that breaks its rule.
+struct StripDefect {
+  std::string field;  // yield_mpa, youngs_mpa, thickness_mm or width_mm
+  std::string rule;   // "must be > 0 (got x)"
+};
+
+// Every field that is not finite and > 0, in the order yield_mpa, youngs_mpa, thickness_mm,
+// width_mm (a command line names its own flag for the field).
+std::vector<StripDefect> FindStripDefects(const Strip& strip);
+
+// Throws InputError "<where>: <field> must be > 0 (got x)" for the first of FindStripDefects.
 void ValidateStrip(const Strip& strip, const std::string& where);
 
 // Mw = σs b h²/6, N·m.
@@ -95,6 +105,7 @@ struct ForcesReport {
   double friction_torque_kNm = 0.0;
   double power_kW = 0.0;
   std::vector<std::string> warnings;  // machine limits exceeded
+  bool mw_given = false;              // Mw was given (ForcesOptions::mw_override_Nm)
 };
 
 ForcesReport ComputeForces(const Strip& strip, const MachineData& machine,
