@@ -606,7 +606,7 @@ MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
     abs_m = m.topLeftCorner(active_, active_).cwiseAbs();
     transposed_scratch_.Assign(abs_m);
     std::vector<double>& work = vector_scratch_;
-    work.assign(3 * active_stride_, 0.0);
+    work.assign(size_t{3} * active_stride_, 0.0);
     double *ones = work.data(), *r1 = ones + active_stride_, *r2 = r1 + active_stride_;
     for (int i = 0; i < active_; ++i) ones[i] = 1.0;
     transposed_scratch_.Apply(ones, r1);  // |m| 1
@@ -642,7 +642,7 @@ void ExactIntegrator::BuildStep(PhaseData* data) {
   data->m_active.CopyTo(&m);
   numerics::ExpAndPhi1(m, h_, &s, &phi);
   Eigen::MatrixXd& step = build_step_;
-  step.setZero(2 * as, a);
+  step.setZero(Eigen::Index{2} * as, a);
   step.topRows(a) = phi;
   step.middleRows(as, a) = s;
   data->step.Assign(step);
@@ -682,7 +682,7 @@ void ExactIntegrator::BuildLadder(PhaseData* data) {
   data->ladder_defect.assign(search + 1, 0.0);
   Eigen::MatrixXd& step = build_step_;
   for (int j = 0; j <= search; ++j) {
-    step.setZero(2 * as, a);
+    step.setZero(Eigen::Index{2} * as, a);
     step.topRows(a) = phi[j];
     step.middleRows(as, a) = s[j];
     data->ladder[j].Assign(step);
