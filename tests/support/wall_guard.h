@@ -1,7 +1,6 @@
 // Wall-clock guards in tests (a bound against hangs, not a speed claim) are written for the
 // Release build. A sanitizer build (MILLKIT_SANITIZE: ASan+UBSan, -O1) runs the same code several
-// times slower (the seeded extreme scenes: 3 to 8 times), so its guards are this many times
-// longer. The Release guard is unchanged.
+// times slower, so its guards are this many times longer. The Release guard is unchanged.
 #pragma once
 
 namespace millkit::testing {
