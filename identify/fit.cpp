@@ -256,6 +256,7 @@ std::vector<double> CramerRaoBound(const driveline::Scene& scene, const Oscillog
   const std::vector<Oscillogram> records = {record};
   ValidateFitConfig(config, records, "fit config");
   std::vector<double> weights;
+  weights.reserve(noise_Nm.size());
   for (const double sigma : noise_Nm) weights.push_back(1.0 / sigma);
   weights.resize(config.channels.size(), 1.0);
   const FitModel model(scene, records, config, weights);
@@ -439,6 +440,7 @@ FitResult FitInNewtonMetres(const driveline::Scene& scene, const std::vector<Osc
   // The records' noise (the fixed weights) and whether they can support a fit at all.
   const RecordAssessment assessment = AssessRecords(records, config);
   std::vector<double> origins;
+  origins.reserve(records.size());
   for (const auto& record : records) origins.push_back(TimeOrigin(config, record));
   FitModel model(scene, records, config, assessment.weights);
   model.set_progress(options.progress);

@@ -14,7 +14,7 @@
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-$here/build-asan}
-seconds=${FUZZ_SECONDS:-15}
+seconds=${FUZZ_SECONDS:-10}
 timeout=${FUZZ_TIMEOUT:-10}
 data=$here/datasets
 # harness: seed files (datasets only; driveline_fuzz makes its scenes from the input's bytes)
@@ -28,7 +28,8 @@ declare -A seeds=(
   [leveller_config_fuzz]="$data/leveller/*.toml"
   [leveller_csv_fuzz]="$data/leveller/*.csv"
   [balancer_fuzz]="$data/balancer/*.toml"
-  [comtrade_fuzz]="$here/tests/fuzz/corpus/comtrade_fuzz/*"
+  [comtrade_fuzz]=""
+  [mat_record_fuzz]=""
 )
 mkdir -p "$build/fuzz/artifacts"
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=1}
@@ -40,6 +41,7 @@ for name in $harnesses; do
   rm -rf "$corpus" && mkdir -p "$corpus"
   # shellcheck disable=SC2086  # the globs expand here
   [ -z "${seeds[$name]}" ] || cp ${seeds[$name]} "$corpus/"
+  [ ! -d "$here/tests/fuzz/corpus/$name" ] || cp "$here/tests/fuzz/corpus/$name"/* "$corpus/"
   start=$SECONDS
   if "$build/tests/fuzz/$name" "$corpus" -max_total_time="$seconds" -timeout="$timeout" \
        -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$build/fuzz/artifacts/$name-" \

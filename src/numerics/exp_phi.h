@@ -11,6 +11,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <vector>
 
 #include "numerics/small_matvec.h"
@@ -52,7 +53,7 @@ inline void ExpAndPhi1(const Eigen::MatrixXd& a, double tau, Eigen::MatrixXd* s,
   for (int j = 2; j <= p; ++j) Multiply(power[j - 1], power[1], &power[j]);
   // Σ_j c_{ip+j} B^j for block i, added to *sum.
   auto add_block = [&](int i, Eigen::MatrixXd* sum) {
-    sum->diagonal().array() += coefficient[i * p];
+    sum->diagonal().array() += coefficient[static_cast<std::size_t>(i) * p];
     for (int j = 1; j < p && i * p + j <= degree; ++j) *sum += coefficient[i * p + j] * power[j];
   };
   const int blocks = degree / p;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <limits>
 
@@ -27,7 +28,7 @@ __attribute__((always_inline)) inline void Block(const double* __restrict a, int
   for (; j + 2 <= cols; j += 2) {
     const double* c = a + static_cast<long>(j) * ld;
     const double* d = c + ld;
-    for (int l = 0; l < L; ++l) {
+    for (std::ptrdiff_t l = 0; l < L; ++l) {
       Load(&t, c + 4 * l);
       p[l] += t * x[j];
       Load(&t, d + 4 * l);
@@ -36,12 +37,12 @@ __attribute__((always_inline)) inline void Block(const double* __restrict a, int
   }
   if (j < cols) {
     const double* c = a + static_cast<long>(j) * ld;
-    for (int l = 0; l < L; ++l) {
+    for (std::ptrdiff_t l = 0; l < L; ++l) {
       Load(&t, c + 4 * l);
       p[l] += t * x[j];
     }
   }
-  for (int l = 0; l < L; ++l) Store(y + 4 * l, p[l] + q[l]);
+  for (std::ptrdiff_t l = 0; l < L; ++l) Store(y + 4 * l, p[l] + q[l]);
 }
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)

@@ -14,6 +14,7 @@
 #include "millkit/driveline/simulation.h"
 #include "millkit/io/input_error.h"
 #include "scene_builder.h"
+#include "support/wall_guard.h"
 
 using namespace millkit::driveline;
 using namespace millkit::driveline::testing;
@@ -176,8 +177,9 @@ TEST_CASE("Seeded extreme scenes end in an answer that agrees with CVODE, or a c
   // 300 scenes from the generator (extreme_scenes.h): 1–4 masses, stiffness 1…1e12, damping 0 or
   // 1e-3…1e10, gaps 1e-12…0.3 rad, rises 1e-10…1e-2 s, drive lags 1e-7…1 s, gear ratios.
   constexpr int kSeeds = 300;
-  // A guard against hangs, far above the slowest case measured (0.8 s); not a speed claim.
-  constexpr double kWallGuard_s = 20.0;
+  // A guard against hangs, far above the slowest case measured (0.8 s); not a speed claim. Scaled
+  // (support/wall_guard.h) in a sanitizer build.
+  constexpr double kWallGuard_s = 20.0 * millkit::testing::kWallGuardScale;
   // Clear failures still open: a surface within roundoff of switching in a stiff phase set (a
   // 2e-7 or 4e-11 rad gap on a coupling damped at 4e8…1e10; the run stops with "needs more than
   // 200000 substeps", seed 95 only on the 3× denser grid).
