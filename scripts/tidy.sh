@@ -2,19 +2,13 @@
 # Runs clang-tidy-14 (.clang-tidy) with BUILD_DIR/compile_commands.json on every source of the
 # libraries and the CLI that the build compiles (src/, identify/, optimize/: 58 files), two files
 # at a time. Any finding fails (WarningsAsErrors).
-# TEMPORARY EXCLUSION (TIDY_EXCLUDE): two sources with findings that are being refactored on other
-# branches while this stage was turned on, listed with their findings in README.md ("Not done"),
-# to be fixed after those branches merge and this exclusion then removed:
-#   src/driveline/exact_solver.cpp (bugprone-implicit-widening-of-multiplication-result),
-#   src/leveller/strip_mechanics.cpp (readability-inconsistent-declaration-parameter-name against
-#   include/millkit/leveller/strip_mechanics.h).
-# TIDY_EXCLUDE= checks them too.
+# TIDY_EXCLUDE=REGEX leaves out sources matching it (none by default).
 # Usage: [TIDY_EXCLUDE=REGEX] scripts/tidy.sh [BUILD_DIR]   (default: build, configured by setup.sh)
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-$here/build}
 [ -f "$build/compile_commands.json" ] || { echo "tidy: no $build/compile_commands.json" >&2; exit 2; }
-exclude=${TIDY_EXCLUDE-src/driveline/exact_solver|src/leveller/strip_mechanics}
+exclude=${TIDY_EXCLUDE-}
 # A file is checked when it is under src/, identify/ or optimize/ and not excluded (Python's re,
 # as run-clang-tidy matches its file patterns).
 if [ -n "$exclude" ]; then
@@ -32,4 +26,4 @@ if ! run-clang-tidy-14 -quiet -j "$(nproc)" -p "$build" -clang-tidy-binary clang
   echo "tidy: findings above (full log $build/tidy.log)" >&2
   exit 1
 fi
-echo "tidy: $count files clean${exclude:+ (excluded for now: $exclude)}"
+echo "tidy: $count files clean${exclude:+ (excluded: $exclude)}"

@@ -44,8 +44,9 @@ double ResidualCurvatureRatio(double c) { return c - MomentRatio(c); }
 
 double CurvatureRatioForPlasticDepth(double plastic_ratio) { return 1.0 / (1.0 - plastic_ratio); }
 
-double CollisionLimitIntermesh_mm(double d, double h, double t) {
-  return d - std::sqrt((d + h) * (d + h) - 0.25 * t * t);
+double CollisionLimitIntermesh_mm(double roll_diameter_mm, double thickness_mm, double pitch_mm) {
+  const double reach = roll_diameter_mm + thickness_mm;
+  return roll_diameter_mm - std::sqrt(reach * reach - 0.25 * pitch_mm * pitch_mm);
 }
 
 // ---------------------------------------------------------------------------------------------

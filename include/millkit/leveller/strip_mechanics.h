@@ -49,9 +49,9 @@ double CollisionLimitIntermesh_mm(double roll_diameter_mm, double thickness_mm, 
 // One strip section under a moment history, Masing with memory. Ratios as above.
 class MasingSection {
  public:
-  // Moves the moment monotonically from moment() to `moment_ratio`; |moment_ratio| < 1.5 and the
+  // Moves the moment monotonically from moment() to the ratio `target`; |target| < 1.5 and the
   // branch must stay finite (precondition, asserted). Accumulates the work ∫ m dC.
-  void MoveTo(double moment_ratio);
+  void MoveTo(double target);
   double moment() const { return m_; }
   double curvature() const { return c_; }
   double work() const { return work_; }  // ∫ m dC, in units of Mw κt
