@@ -13,7 +13,10 @@
 # crawling stiff run, the random-lines and three-mass seed sets, the parallel fits of three
 # random lines): under the sanitizers they take about 20 minutes of one core (465 s, 405 s,
 # 159 s, 106 s, 53 s measured), beyond CI's budget, and every code path they run is run here by
-# the other tests; the plain build runs them.
+# the other tests; the plain build runs them. Likewise the identification fits beyond five
+# representative ones (verdict ok, verdict not_converged, a gap not identifiable, a COMTRADE and
+# a MAT record): each takes 20 to 300 s under the sanitizers (measured on a clean-clone run) and
+# runs the same fit code on another record or option.
 # Usage: scripts/sanitize.sh [BUILD_DIR]   (default: build-asan)
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
@@ -29,4 +32,11 @@ export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1:check_
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 slow="Seeded extreme scenes|A stiff run that crawls|random lines: a fixed sample|three-mass line: every seed"
 slow+="|three-mass line: the record printed|parallel fit: random lines"
+slow+="|identify without a config on the bundled record|logger time: a record shifted"
+slow+="|identify takes --data more than once|identify fits the bundled record and writes"
+slow+="|Records at 1 and 10 kHz|identify reads a .mat record with logger time"
+slow+="|A second noisy record shrinks|verdict misfit|identify reports a gap the record cannot tell"
+slow+="|Modelling the recorder's anti-alias filter|a record in kN|Two noise-free records give back"
+slow+="|a gain held by its bounds|a logger CSV with BOM|A noise-free record gives back every true"
+slow+="|identify --threads 2 writes the same JSON|Over 20 noisy records"
 ctest --output-on-failure -j "$(nproc)" -LE package -E "$slow"
