@@ -456,6 +456,10 @@ class ExactIntegrator final : public ModeIntegrator {
     Record(recorder, k, y_.data(), end_.data() + data_->watched.size());
   }
   void Finish(SimulationSummary* /*summary*/) override {}
+  void State(Eigen::VectorXd* z) const override {
+    z->resize(n_);
+    for (int i = 0; i < n_; ++i) (*z)[i] = scale_[i] * y_[i];
+  }
 
  private:
   // Advance itself (a virtual function cannot be cloned per target; see MILLKIT_HOT).
@@ -1195,6 +1199,16 @@ void ExactIntegrator::ApplyBreakpoint(double breakpoint, double /*t*/) {
 }
 
 }  // namespace
+
+double ExactStepLength(const Model& model, const SimulationOptions& options) {
+  return CachedStepLength(model.reduced_scene(), options);
+}
+
+Eigen::VectorXd ExactScale(const Model& model, double step) {
+  Eigen::VectorXd scale = AugmentedScale(model, step);
+  BalanceScale(model, &scale);
+  return scale;
+}
 
 std::unique_ptr<ModeIntegrator> MakeExactIntegrator(const Model& model,
                                                     const SimulationOptions& options) {

@@ -22,7 +22,7 @@ constexpr double kEscapeFraction[kMaxEscapes] = {1e-9, 1e-6, 1e-3};
 }  // namespace
 
 SimulationResult RunHybrid(const Model& model, const SimulationOptions& options, const char* solver,
-                           ModeIntegrator* integrator) {
+                           ModeIntegrator* integrator, HybridObserver* observer) {
   const auto started = std::chrono::steady_clock::now();
   SimulationResult result;
   SimulationSummary& summary = result.summary;
@@ -38,6 +38,7 @@ SimulationResult RunHybrid(const Model& model, const SimulationOptions& options,
   }
   Phases phases = options.initial_state ? model.InitialPhases(z0) : model.InitialPhases();
   summary.message = integrator->Start(z0, phases, &summary);
+  if (observer != nullptr && summary.message.empty()) observer->Started(z0, phases);
   const double h = integrator->time_scale();
   // Breakpoints: the input slopes change (ramp ends, steps). Taken from the reduced scene, whose
   // inputs the model integrates.
@@ -58,6 +59,7 @@ SimulationResult RunHybrid(const Model& model, const SimulationOptions& options,
   if (summary.message.empty()) {
     if (times.front() == 0.0) {
       integrator->Record(&recorder, 0, times[0]);
+      if (observer != nullptr) observer->Recorded(0, phases);
       k = 1;
     } else {
       from_output = false;
@@ -98,6 +100,10 @@ SimulationResult RunHybrid(const Model& model, const SimulationOptions& options,
     if (end.kind == LegEnd::Kind::kEvent) {
       integrator->EventMotion(&z, &derivatives);
       const Phases next = model.Classify(z, derivatives, end.crossed);
+      if (observer != nullptr) {
+        observer->LegEnded(end.elapsed, phases, z, escaping);
+        observer->Switched(phases, next, end.crossed);
+      }
       if (end.elapsed <= kStallUlps * kEps * std::max(std::abs(t), h)) {
         for (const Model::KnownSide& side : end.crossed) stall_surfaces.push_back(side.surface);
         if (++stalled > kMaxStalledEvents) {
@@ -133,6 +139,10 @@ SimulationResult RunHybrid(const Model& model, const SimulationOptions& options,
     }
 
     t = end.t;
+    if (observer != nullptr) {
+      integrator->State(&z);
+      observer->LegEnded(end.elapsed, phases, z, escaping);
+    }
     if (escape_ends) {  // watch every surface again
       std::fill(ignored.begin(), ignored.end(), 0);
       escape_until = -1.0;
@@ -141,10 +151,15 @@ SimulationResult RunHybrid(const Model& model, const SimulationOptions& options,
     if (leg.at_breakpoint) {
       integrator->ApplyBreakpoint(leg.breakpoint, t);
       ++next_breakpoint;
+      if (observer != nullptr) {
+        integrator->State(&z);
+        observer->BreakpointApplied(leg.breakpoint, z);
+      }
     }
     from_output = leg.at_output;
     if (leg.at_output) {
       integrator->Record(&recorder, k, t_grid);
+      if (observer != nullptr) observer->Recorded(k, phases);
       ++k;
       if (!escaping) escapes = 0;
     }

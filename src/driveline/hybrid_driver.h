@@ -79,16 +79,48 @@ class ModeIntegrator {
   virtual void Record(OutputRecorder* recorder, int k, double t_output) = 0;
   // At the end of the run (also after a failure): final counts into the summary.
   virtual void Finish(SimulationSummary* summary) = 0;
+  // The augmented state now (after a leg that reached its target, or a breakpoint); for an
+  // observer (sensitivity.cpp). An integrator that cannot tell leaves z empty.
+  virtual void State(Eigen::VectorXd* z) const { z->resize(0); }
+};
+
+// What a run did, stop by stop, for a pass that follows it (the forward sensitivities,
+// sensitivity.cpp). Every leg that does not fail ends in LegEnded (its length and end state);
+// an event then calls Switched, a breakpoint BreakpointApplied, an output time Recorded.
+class HybridObserver {
+ public:
+  virtual ~HybridObserver() = default;
+  HybridObserver() = default;
+  HybridObserver(const HybridObserver&) = delete;
+  HybridObserver& operator=(const HybridObserver&) = delete;
+
+  virtual void Started(const Eigen::VectorXd& z0, const Phases& phases) = 0;
+  // A leg of `elapsed` s in `phases` ended at state z; `blind`: it ran blind to some surfaces
+  // (escaping a degenerate switch), so a crossing may have been stepped over.
+  virtual void LegEnded(double elapsed, const Phases& phases, const Eigen::VectorXd& z,
+                        bool blind) = 0;
+  // An event at the state of the last LegEnded: the phases before and after, the crossed surfaces.
+  virtual void Switched(const Phases& before, const Phases& after,
+                        const std::vector<Model::KnownSide>& crossed) = 0;
+  // The forcing took its right limit at `breakpoint`: z is the state after.
+  virtual void BreakpointApplied(double breakpoint, const Eigen::VectorXd& z) = 0;
+  // Output sample k was recorded in `phases`.
+  virtual void Recorded(int k, const Phases& phases) = 0;
 };
 
 // Runs the hybrid loop with `integrator`; the summary's solver is `solver`. Validate the options
 // first. An exception from options.sample_sink or options.progress propagates.
+// `observer`, when given, is told every stop.
 SimulationResult RunHybrid(const Model& model, const SimulationOptions& options, const char* solver,
-                           ModeIntegrator* integrator);
+                           ModeIntegrator* integrator, HybridObserver* observer = nullptr);
 
 // The integrators, one per SolverKind (their sources).
 std::unique_ptr<ModeIntegrator> MakeExactIntegrator(const Model& model,
                                                     const SimulationOptions& options);
+// The exact solver's cached step length and the scale of each augmented component it steps in
+// (exact_solver.cpp).
+double ExactStepLength(const Model& model, const SimulationOptions& options);
+Eigen::VectorXd ExactScale(const Model& model, double step);
 std::unique_ptr<ModeIntegrator> MakeCvodeIntegrator(const Model& model,
                                                     const SimulationOptions& options);
 

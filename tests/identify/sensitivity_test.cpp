@@ -1,0 +1,244 @@
+// Forward sensitivities (millkit/driveline/sensitivity.h) against central differences of the
+// simulation, at random parameter points of random lines (identify/random_line.h) under every
+// contact law (issue 15 item 1).
+#include "millkit/driveline/sensitivity.h"
+
+#include <algorithm>
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <string>
+
+#include "identify/random_line.h"
+
+namespace millkit {
+namespace {
+
+using driveline::SceneParameter;
+
+// Central differences of every link torque sample over parameter `parameter` at its value in
+// `scene`, with absolute steps h and h/2, extrapolated (Richardson: (4 D(h/2) − D(h)) / 3, error
+// O(h⁴); after a hundred impacts the torques are far from linear in a parameter, and D(h) alone
+// is off by 1e-5 of its size). False when a neighbour's run fails or has another event count (the
+// event sequence is not locally constant there). `kinks` gets the time intervals the events (and,
+// for the bite time, the breakpoints) sweep between the runs: a sample inside one sees a kink or
+// a jump of the torque move past it, which no derivative describes.
+bool CentralDifference(const driveline::Scene& scene, const SceneParameter& parameter,
+                       const driveline::SimulationOptions& options, double step, long events,
+                       Eigen::MatrixXd* derivative, Eigen::MatrixXd* spread,
+                       std::vector<std::pair<double, double>>* kinks) {
+  const double value = parameter.Get(scene);
+  const double offsets[4] = {step, -step, 0.5 * step, -0.5 * step};
+  Eigen::MatrixXd torque[4];
+  std::vector<double> low, high;
+  for (int i = 0; i < 4; ++i) {
+    driveline::Scene probe = scene;
+    parameter.Set(value + offsets[i], &probe);
+    const auto result = driveline::Simulate(driveline::Model(probe), options);
+    if (!result.summary.success || result.summary.events != events) return false;
+    torque[i] = result.link_torque_Nm;
+    const auto& times = result.summary.event_times_s;
+    if (i == 0) {
+      low = high = times;
+    } else {
+      for (long e = 0; e < events; ++e) {
+        low[e] = std::min(low[e], times[e]);
+        high[e] = std::max(high[e], times[e]);
+      }
+    }
+  }
+  const Eigen::MatrixXd coarse = (torque[0] - torque[1]) / (2.0 * step);
+  const Eigen::MatrixXd fine = (torque[2] - torque[3]) / step;
+  *derivative = (4.0 * fine - coarse) / 3.0;
+  *spread = fine - coarse;
+  kinks->clear();
+  for (long e = 0; e < events; ++e) kinks->emplace_back(low[e], high[e]);
+  if (parameter.kind == SceneParameter::Kind::kBiteTime) {
+    for (double t : scene.InputBreakpoints()) kinks->emplace_back(t - step, t + step);
+  }
+  return true;
+}
+
+// Rows of `matrix` at the times inside none of the intervals; the count of rows removed.
+int DropKinks(const std::vector<double>& time, const std::vector<std::pair<double, double>>& kinks,
+              Eigen::MatrixXd* matrix) {
+  int kept = 0;
+  for (int k = 0; k < matrix->rows(); ++k) {
+    const bool inside = std::any_of(kinks.begin(), kinks.end(), [&](const auto& kink) {
+      return time[k] >= kink.first && time[k] <= kink.second;
+    });
+    if (!inside) matrix->row(kept++) = matrix->row(k);
+  }
+  const int dropped = static_cast<int>(matrix->rows()) - kept;
+  matrix->conservativeResize(kept, Eigen::NoChange);
+  return dropped;
+}
+
+struct Tally {
+  int points = 0;    // parameter points compared in full
+  int compared = 0;  // parameter columns compared
+  int skipped = 0;   // columns whose neighbours change the event count
+  int unavailable = 0;
+  long samples = 0;    // samples of the compared columns
+  long dropped = 0;    // of them, inside the interval an event sweeps (CentralDifference)
+  int noisy = 0;       // columns within the differences' spread only
+  double worst = 0.0;  // largest difference / allowed
+};
+
+// The parameters of a scene: each link's damping and backlash, the first stiffness, the last
+// inertia and load, the bite time and the first backlash link's gap position.
+std::vector<SceneParameter> ParametersOf(const driveline::Scene& scene) {
+  std::vector<SceneParameter> parameters;
+  const auto add = [&](const std::string& name) {
+    parameters.push_back(driveline::ParseSceneParameter(scene, name, "test"));
+  };
+  for (const auto& link : scene.links) {
+    add(link.name + ".damping");
+    if (link.backlash_rad > 0.0) add(link.name + ".backlash");
+  }
+  add(scene.links.front().name + ".stiffness");
+  add(scene.masses.back().name + ".inertia");
+  add(scene.masses.back().name + ".load");
+  add("bite_time");
+  for (const auto& link : scene.links) {
+    if (link.backlash_rad > 0.0) {
+      add(link.name + ".gap_position");
+      break;
+    }
+  }
+  return parameters;
+}
+
+// Moves every parameter to a random point (× [0.7, 1.3], bite time ± 5 ms, gap position in
+// [−0.9, 0.9]) and compares the sensitivities with extrapolated central differences (steps 1e-5
+// and 5e-6 of each parameter's magnitude).
+void ComparePoint(driveline::Scene scene, std::mt19937_64* random, const char* label,
+                  Tally* tally) {
+  const auto parameters = ParametersOf(scene);
+  for (const auto& parameter : parameters) {
+    const double u = std::uniform_real_distribution<double>(0.0, 1.0)(*random);
+    const double value = parameter.Get(scene);
+    if (parameter.kind == SceneParameter::Kind::kBiteTime)
+      parameter.Set(value + 0.01 * (u - 0.5), &scene);
+    else if (parameter.kind == SceneParameter::Kind::kGapPosition)
+      parameter.Set(-0.9 + 1.8 * u, &scene);
+    else
+      parameter.Set(value * (0.7 + 0.6 * u), &scene);
+  }
+  driveline::SimulationOptions options;
+  options.estimate_error = false;
+  const auto sensitivities = driveline::SimulateWithSensitivities(scene, parameters, options);
+  REQUIRE(sensitivities.simulation.summary.success);
+  if (!sensitivities.unavailable.empty()) {
+    std::printf("%s: unavailable: %s\n", label, sensitivities.unavailable.c_str());
+    ++tally->unavailable;
+    return;
+  }
+  const long events = sensitivities.simulation.summary.events;
+  const double peak = sensitivities.simulation.link_torque_Nm.cwiseAbs().maxCoeff();
+  ++tally->points;
+  for (size_t j = 0; j < parameters.size(); ++j) {
+    const auto& parameter = parameters[j];
+    const double value = parameter.Get(scene);
+    const double scale = parameter.kind == SceneParameter::Kind::kBiteTime      ? 0.1
+                         : parameter.kind == SceneParameter::Kind::kGapPosition ? 1.0
+                                                                                : std::abs(value);
+    // A parameter at its physical bound (the undamped two-mass scene's zero damping) has no
+    // central difference.
+    if (value == 0.0 && parameter.kind == SceneParameter::Kind::kDamping) {
+      ++tally->skipped;
+      continue;
+    }
+    Eigen::MatrixXd reference, spread;
+    std::vector<std::pair<double, double>> kinks;
+    if (!CentralDifference(scene, parameter, options, 1e-5 * scale, events, &reference, &spread,
+                           &kinks)) {
+      ++tally->skipped;
+      continue;
+    }
+    Eigen::MatrixXd exact = sensitivities.link_torque[j];
+    const auto& time = sensitivities.simulation.time_s;
+    tally->dropped += DropKinks(time, kinks, &reference);
+    DropKinks(time, kinks, &exact);
+    DropKinks(time, kinks, &spread);
+    tally->samples += static_cast<int>(time.size());
+    // 1e-6 of the column's size, plus the differences' noise floor for a parameter the torques
+    // hardly depend on: 1e-7 of the peak torque per parameter magnitude (a 100 % change moves
+    // the torques by 1e-7 of their peak; the runs' roundoff, ≈ 4e-14 of the peak, divided by
+    // the step 1e-5 is 25 times less). After a hundred impacts the runs' roundoff grows (each
+    // event time's few ulps are amplified by the impacts after it) and the differences cannot
+    // tell more than their own spread, |D(h/2) − D(h)|: such a column is checked to that, and
+    // counted.
+    const double size = reference.cwiseAbs().maxCoeff();
+    const double difference = (exact - reference).cwiseAbs().maxCoeff();
+    const double allowed = 1e-6 * size + 1e-7 * peak / scale;
+    const double noise = 3.0 * spread.cwiseAbs().maxCoeff();
+    tally->worst = std::max(tally->worst, difference / allowed);
+    if (difference > allowed) ++tally->noisy;
+    if (difference > allowed + noise) {
+      Eigen::Index row = 0, col = 0;
+      (exact - reference).cwiseAbs().maxCoeff(&row, &col);
+      std::printf(
+          "%s law %s %s: difference %.3g of %.3g (allowed %.3g + spread %.3g, events "
+          "%ld; row %ld link %ld: %.6g vs %.6g)\n",
+          label, driveline::ContactLawName(scene.contact), parameter.name.c_str(), difference, size,
+          allowed, noise, events, static_cast<long>(row), static_cast<long>(col), exact(row, col),
+          reference(row, col));
+    }
+    CHECK(difference <= allowed + noise);
+    ++tally->compared;
+  }
+}
+
+constexpr driveline::ContactLaw kLaws[] = {driveline::ContactLaw::kLimited,
+                                           driveline::ContactLaw::kNoPull,
+                                           driveline::ContactLaw::kLinear};
+
+TEST_CASE("Sensitivities agree with central differences at 200 points of random lines",
+          "[sensitivity]") {
+  Tally tally;
+  std::mt19937_64 random(15);
+  for (unsigned long seed = 1; tally.points < 200 && seed <= 260; ++seed) {
+    driveline::Scene scene = identify::MakeRandomLineCase(seed).truth;
+    scene.contact = kLaws[seed % 3];
+    scene.duration_s = 0.15;
+    ComparePoint(scene, &random, ("seed " + std::to_string(seed)).c_str(), &tally);
+  }
+  std::printf(
+      "random lines: %d points, %d columns compared, %d skipped, %d unavailable, "
+      "worst difference / allowed %.3g, %ld of %ld samples next to an event, %d within "
+      "the spread only\n",
+      tally.points, tally.compared, tally.skipped, tally.unavailable, tally.worst, tally.dropped,
+      tally.samples, tally.noisy);
+  CHECK(tally.points >= 200);
+  CHECK(tally.noisy <= tally.compared / 100);
+  CHECK(tally.unavailable <= 10);
+}
+
+TEST_CASE("Sensitivities agree with central differences on the bundled scenes", "[sensitivity]") {
+  Tally tally;
+  std::mt19937_64 random(16);
+  for (const char* name : {"mill5_bite", "drive_pi", "two_mass_step", "mill5_stiff_motor"}) {
+    const auto scene = driveline::LoadScene(std::string(MILLKIT_SOURCE_DIR) + "/datasets/scenes/" +
+                                            name + ".toml");
+    for (const auto law : kLaws) {
+      for (int point = 0; point < 3; ++point) {
+        driveline::Scene run = scene;
+        run.contact = law;
+        ComparePoint(run, &random, name, &tally);
+      }
+    }
+  }
+  std::printf(
+      "bundled scenes: %d points, %d columns compared, %d skipped, %d unavailable, "
+      "worst difference / allowed %.3g, %ld of %ld samples next to an event, %d within "
+      "the spread only\n",
+      tally.points, tally.compared, tally.skipped, tally.unavailable, tally.worst, tally.dropped,
+      tally.samples, tally.noisy);
+  CHECK(tally.points >= 30);
+  CHECK(tally.noisy <= tally.compared / 10);
+}
+
+}  // namespace
+}  // namespace millkit
