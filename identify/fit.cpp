@@ -14,6 +14,7 @@
 #include "identify/uncertainty.h"
 #include "identify/verdict.h"
 #include "millkit/driveline/model.h"
+#include "millkit/driveline/sensitivity.h"
 #include "millkit/driveline/simulation.h"
 #include "millkit/io/input_error.h"
 #include "millkit/io/number_format.h"
@@ -70,9 +71,41 @@ double TimeOrigin(const FitConfig& config, const Oscillogram& record) {
   return config.time_origin_s ? *config.time_origin_s : record.time_s.front();
 }
 
+const char* DerivativesName(Derivatives derivatives) {
+  switch (derivatives) {
+    case Derivatives::kSensitivity:
+      return "sensitivity";
+    case Derivatives::kForward:
+      return "forward";
+    case Derivatives::kCentral:
+      return "central";
+  }
+  return "sensitivity";
+}
+
+bool ParseDerivatives(const std::string& text, Derivatives* derivatives) {
+  for (const auto kind :
+       {Derivatives::kSensitivity, Derivatives::kForward, Derivatives::kCentral}) {
+    if (text == DerivativesName(kind)) {
+      *derivatives = kind;
+      return true;
+    }
+  }
+  return false;
+}
+
 bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, double origin_s,
                       const std::vector<ChannelSpec>& channels, int begin, int end,
                       std::vector<Eigen::VectorXd>* torques, std::string* why) {
+  return SimulateChannels(scene, record, origin_s, channels, begin, end, torques, why, {}, nullptr,
+                          nullptr);
+}
+
+bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, double origin_s,
+                      const std::vector<ChannelSpec>& channels, int begin, int end,
+                      std::vector<Eigen::VectorXd>* torques, std::string* why,
+                      const std::vector<driveline::SceneParameter>& parameters,
+                      std::vector<Eigen::MatrixXd>* derivatives, std::string* unavailable) {
   try {
     driveline::Scene run = scene;
     run.duration_s = record.time_s[end - 1] - origin_s;
@@ -97,26 +130,46 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
                        " s lies before the time origin " + std::to_string(origin_s) + " s");
     }
     options.output_times = times;
-    const driveline::Model model(std::move(run));
-    const auto result = driveline::Simulate(model, options);
+    driveline::SensitivityResult sensitivities;
+    if (derivatives != nullptr) {
+      sensitivities = driveline::SimulateWithSensitivities(run, parameters, options);
+      *unavailable = sensitivities.unavailable;
+    } else {
+      sensitivities.simulation = driveline::Simulate(driveline::Model(std::move(run)), options);
+    }
+    const auto& result = sensitivities.simulation;
     if (!result.summary.success) {
       *why = result.summary.message;
       return false;
     }
+    const bool with_derivatives = derivatives != nullptr && unavailable->empty();
+    const int count = static_cast<int>(parameters.size());
     torques->resize(channels.size());
+    if (with_derivatives) derivatives->resize(channels.size());
     std::vector<double> signal(times.size());
-    for (size_t c = 0; c < channels.size(); ++c) {
-      const auto column = result.link_torque_Nm.col(channels[c].link_index);
+    // The samples of one channel's link torque (or of its derivative over parameter j), through
+    // the channel's recorder filter (linear), at the record steps in [begin, end).
+    const auto sample = [&](const ChannelSpec& channel, const Eigen::MatrixXd& matrix,
+                            Eigen::Ref<Eigen::VectorXd> out) {
+      const auto column = matrix.col(channel.link_index);
       for (size_t j = 0; j < times.size(); ++j) signal[j] = column(static_cast<int>(j));
-      FirstOrderLowPass(channels[c].lowpass_Hz, times, &signal);
-      auto& out = (*torques)[c];
-      out.resize(end - begin);
+      FirstOrderLowPass(channel.lowpass_Hz, times, &signal);
       for (int k = begin; k < end; ++k)
         out(k - begin) = signal[static_cast<size_t>(k - first) * stride];
+    };
+    for (size_t c = 0; c < channels.size(); ++c) {
+      auto& out = (*torques)[c];
+      out.resize(end - begin);
+      sample(channels[c], result.link_torque_Nm, out);
       if (!out.allFinite()) {
         *why = "non-finite torque";
         return false;
       }
+      if (!with_derivatives) continue;
+      auto& derivative = (*derivatives)[c];
+      derivative.resize(end - begin, count);
+      for (int j = 0; j < count; ++j)
+        sample(channels[c], sensitivities.link_torque[j], derivative.col(j));
     }
     return true;
   } catch (const InputError& error) {
@@ -509,7 +562,9 @@ FitResult Fit(const driveline::Scene& scene, const std::vector<Oscillogram>& rec
       }
     }
   }
-  FitResult result = FitInNewtonMetres(scene, all_Nm ? records : scaled, config, options);
+  FitOptions chosen = options;
+  if (config.derivatives) chosen.derivatives = *config.derivatives;
+  FitResult result = FitInNewtonMetres(scene, all_Nm ? records : scaled, config, chosen);
   for (auto& e : result.channels) {
     const auto spec = std::find_if(config.channels.begin(), config.channels.end(),
                                    [&e](const ChannelSpec& c) { return c.column == e.column; });

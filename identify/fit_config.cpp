@@ -205,7 +205,7 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
   config.window_start_s = span_first;
   config.window_end_s = span_last;
   if (const auto fit = top.OptionalTable("fit")) {
-    fit->RequireOnlyKeys({"window", "scan", "starts", "seed", "time_origin"});
+    fit->RequireOnlyKeys({"window", "scan", "starts", "seed", "time_origin", "derivatives"});
     if (fit->Has("time_origin")) config.time_origin_s = fit->RequiredNumber("time_origin");
     if (fit->Has("window")) {
       const auto window = fit->NumberArray("window");
@@ -224,6 +224,14 @@ FitConfig LoadFitConfig(const std::string& path, const std::vector<Oscillogram>&
     config.scan_points = static_cast<int>(fit->Integer("scan", kDefaultScanPoints, 0, 100000));
     config.starts = static_cast<int>(fit->Integer("starts", kDefaultStarts, 1, 10000));
     config.seed = static_cast<unsigned>(fit->Integer("seed", 1, 0, 4294967295L));
+    if (const auto derivatives = fit->OptionalString("derivatives")) {
+      Derivatives kind;
+      if (!ParseDerivatives(*derivatives, &kind)) {
+        fit->Fail("derivatives", "must be \"sensitivity\", \"forward\" or \"central\" (got \"" +
+                                     *derivatives + "\")");
+      }
+      config.derivatives = kind;
+    }
   }
   if (const auto set = top.OptionalTable("set")) {
     for (const auto& [key, node] : set->table()) {

@@ -157,6 +157,93 @@ bool FitModel::Torques(const double* u, std::vector<Eigen::VectorXd>* m, int onl
   return true;
 }
 
+bool FitModel::TorquesWithDerivatives(const double* u, std::vector<Eigen::VectorXd>* m,
+                                      std::vector<Eigen::MatrixXd>* dm, bool* available,
+                                      const std::vector<int>& frozen) const {
+  m->resize(blocks_.size());
+  dm->resize(blocks_.size());
+  *available = true;
+  std::vector<Eigen::VectorXd> torques;
+  std::vector<Eigen::MatrixXd> derivatives;
+  const size_t channels = config_.channels.size();
+  for (int r = 0; r < static_cast<int>(records_.size()); ++r) {
+    driveline::Scene scene = scene_;
+    std::vector<driveline::SceneParameter> scene_parameters;
+    std::vector<int> slots;  // the slot of each scene parameter
+    for (int s = 0; s < parameters(); ++s) {
+      if (slots_[s].record < 0 || slots_[s].record == r) {
+        free(s).parameter.Set(Physical(s, u[s]), &scene);
+        if (std::find(frozen.begin(), frozen.end(), s) != frozen.end()) continue;
+        scene_parameters.push_back(free(s).parameter);
+        slots.push_back(s);
+      }
+    }
+    const Block& first = blocks_[r * channels];
+    const long simulations = ++*simulations_;
+    if (progress_) {
+      const std::lock_guard lock(*progress_mutex_);
+      progress_(activity_, simulations);
+    }
+    std::string why, unavailable;
+    if (!SimulateChannels(scene, records_[r], TimeOrigin(config_, records_[r]), config_.channels,
+                          first.begin, first.end, &torques, &why, scene_parameters, &derivatives,
+                          &unavailable)) {
+      last_failure_ = records_.size() > 1 ? records_[r].source + ": " + why : why;
+      return false;
+    }
+    if (!unavailable.empty()) *available = false;
+    for (size_t c = 0; c < torques.size(); ++c) {
+      const size_t b = r * channels + c;
+      (*m)[b] = std::move(torques[c]);
+      if (!*available) continue;
+      // d/du = d/dp · dp/du per slot.
+      Eigen::MatrixXd& out = (*dm)[b];
+      out.setZero((*m)[b].size(), this->parameters());
+      for (size_t j = 0; j < slots.size(); ++j) {
+        out.col(slots[j]) = derivatives[c].col(static_cast<int>(j)) *
+                            slots_[slots[j]].map.PhysicalPerUnit(u[slots[j]]);
+      }
+    }
+  }
+  return true;
+}
+
+Eigen::MatrixXd FitModel::ProjectedDerivative(int b, const Eigen::VectorXd& m,
+                                              const Eigen::MatrixXd& dm, const Nuisance& n) const {
+  const auto& spec = channel_spec(b);
+  const auto& block = blocks_[b];
+  const auto& y = block.measured;
+  const double count = static_cast<double>(y.size());
+  const bool gain_free = spec.fit_gain && !n.gain_at_bound;
+  const bool offset_free = spec.fit_offset && !n.offset_at_bound;
+  // Per parameter column: y·dm, m·dm and Σ dm.
+  const Eigen::RowVectorXd y_dm = y.transpose() * dm;
+  const Eigen::RowVectorXd m_dm = m.transpose() * dm;
+  const Eigen::RowVectorXd sum_dm = dm.colwise().sum();
+  Eigen::RowVectorXd dg = Eigen::RowVectorXd::Zero(dm.cols());
+  Eigen::RowVectorXd d_offset = Eigen::RowVectorXd::Zero(dm.cols());
+  const double smm = m.squaredNorm(), sm = m.sum();
+  // The normal equations of the free ones, differentiated: with both free
+  //   smm g + sm o = y·m,  sm g + N o = Σy  →  [smm sm; sm N] [dg; do] = [y·dm − 2g m·dm − o Σdm;
+  //   −g Σdm].
+  if (gain_free && offset_free) {
+    const double det = smm * count - sm * sm;
+    if (det > 0.0) {
+      const Eigen::RowVectorXd r1 = y_dm - 2.0 * n.gain * m_dm - n.offset_Nm * sum_dm;
+      const Eigen::RowVectorXd r2 = -n.gain * sum_dm;
+      dg = (count * r1 - sm * r2) / det;
+      d_offset = (smm * r2 - sm * r1) / det;
+    }
+  } else if (gain_free && smm > 0.0) {
+    dg = (y_dm - n.offset_Nm * sum_dm - 2.0 * n.gain * m_dm) / smm;
+  } else if (offset_free) {
+    d_offset = -n.gain * sum_dm / count;
+  }
+  Eigen::MatrixXd derivative = n.gain * dm + m * dg;
+  derivative.rowwise() += d_offset;
+  return block.weight * derivative;
+}
+
 Nuisance FitModel::SolveNuisance(int b, const Eigen::VectorXd& m) const {
   const auto& spec = channel_spec(b);
   const auto& block = blocks_[b];
@@ -317,9 +404,9 @@ bool FitModel::FullJacobian(const std::vector<double>& u, const std::vector<Nuis
   return true;
 }
 
-ProjectedResidual::ProjectedResidual(const FitModel& model, double step, bool central,
+ProjectedResidual::ProjectedResidual(const FitModel& model, double step, Derivatives derivatives,
                                      std::vector<int> frozen)
-    : model_(model), step_(step), central_(central), frozen_(std::move(frozen)) {
+    : model_(model), step_(step), derivatives_(derivatives), frozen_(std::move(frozen)) {
   set_num_residuals(model.residuals());
   mutable_parameter_block_sizes()->push_back(model.parameters());
 }
@@ -330,11 +417,41 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
   const int n = model_.residuals();
   std::vector<double> u(p);
   for (int i = 0; i < p; ++i) u[i] = ParameterMap::UnitFromAngle(parameters[0][i]);
+  const bool want_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
   std::vector<Eigen::VectorXd> m;
   Eigen::VectorXd r;
-  if (!model_.ProjectedResiduals(u.data(), &r, nullptr, &m)) return false;
-  Eigen::Map<Eigen::VectorXd>(residuals, n) = r;
-  if (jacobians == nullptr || jacobians[0] == nullptr) return true;
+  if (want_jacobian && derivatives_ == Derivatives::kSensitivity) {
+    std::vector<Eigen::MatrixXd> dm;
+    bool available = false;
+    if (!model_.TorquesWithDerivatives(u.data(), &m, &dm, &available, frozen_) ||
+        !model_.Project(m, &r)) {
+      return false;
+    }
+    Eigen::Map<Eigen::VectorXd>(residuals, n) = r;
+    if (available) {
+      std::vector<Nuisance> nuisance(model_.blocks());
+      for (int b = 0; b < model_.blocks(); ++b) nuisance[b] = model_.SolveNuisance(b, m[b]);
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> jac(
+          jacobians[0], n, p);
+      for (int b = 0; b < model_.blocks(); ++b) {
+        const auto& block = model_.block(b);
+        jac.middleRows(block.offset, block.measured.size()) =
+            model_.ProjectedDerivative(b, m[b], dm[b], nuisance[b]);
+      }
+      for (int i = 0; i < p; ++i) {
+        if (std::find(frozen_.begin(), frozen_.end(), i) != frozen_.end())
+          jac.col(i).setZero();
+        else
+          jac.col(i) *= ParameterMap::UnitPerAngle(parameters[0][i]);
+      }
+      return true;
+    }
+    // Not available here (a grazing event, a degenerate switch): forward differences.
+  } else {
+    if (!model_.ProjectedResiduals(u.data(), &r, nullptr, &m)) return false;
+    Eigen::Map<Eigen::VectorXd>(residuals, n) = r;
+  }
+  if (!want_jacobian) return true;
   Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> jac(
       jacobians[0], n, p);
   jac.setZero();
@@ -352,8 +469,8 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
       u[i] = u0;
       return ok;
     };
-    if (central_ && u0 - step_ >= 0.0 && u0 + step_ <= 1.0 && probe(u0 + step_, &r1) &&
-        probe(u0 - step_, &r2)) {
+    if (derivatives_ == Derivatives::kCentral && u0 - step_ >= 0.0 && u0 + step_ <= 1.0 &&
+        probe(u0 + step_, &r1) && probe(u0 - step_, &r2)) {
       jac.col(i) = (r1 - r2) / (2.0 * step_);
     } else {
       // A probe the solver cannot run (a rare event configuration it rejects) is retried on the

@@ -27,6 +27,7 @@
 
 #include "identify/parameter_map.h"
 #include "millkit/driveline/scene.h"
+#include "millkit/identify/fit.h"
 #include "millkit/identify/fit_config.h"
 #include "millkit/identify/oscillogram.h"
 #include "numerics/parallel_for.h"
@@ -107,6 +108,18 @@ class FitModel {
   // Simulated link torque of every block for scene parameters u (unit coordinates); with
   // `only_record` ≥ 0 only that record's blocks are simulated (the others are left as they are).
   bool Torques(const double* u, std::vector<Eigen::VectorXd>* m, int only_record = -1) const;
+  // Torques as Torques does, with their derivatives over the unit coordinates: dm[b] is block b's
+  // samples × parameters() (zero columns for slots of other records and for `frozen` slots, which
+  // are not computed). False when a simulation fails; *available false (dm unset) when the
+  // sensitivities cannot be computed at u.
+  bool TorquesWithDerivatives(const double* u, std::vector<Eigen::VectorXd>* m,
+                              std::vector<Eigen::MatrixXd>* dm, bool* available,
+                              const std::vector<int>& frozen = {}) const;
+  // The derivative of block b's projected residual w_b (g m + o − y) over the scene parameters,
+  // the gain and offset following m (solved again: their change where they are inside their
+  // bounds), for torque m with derivatives dm (samples × parameters) and its solution n.
+  Eigen::MatrixXd ProjectedDerivative(int b, const Eigen::VectorXd& m, const Eigen::MatrixXd& dm,
+                                      const Nuisance& n) const;
   // The gain and offset that minimise block b's misfit for torque m, within their bounds.
   Nuisance SolveNuisance(int b, const Eigen::VectorXd& m) const;
   // Weighted residuals w_b (g_b m_b + o_b − y_b) of block b into r (its own rows).
@@ -149,18 +162,21 @@ class FitModel {
 };
 
 // The projected misfit as one Ceres residual block over the angles φ of the scene parameters.
-// Jacobian by finite differences in u (forward, or central when asked) chained with du/dφ; a
-// per-record slot re-simulates only its record. Frozen slots keep a zero column, unsimulated.
+// Jacobian by finite differences in u (forward, or central), or from the forward sensitivities
+// (FitOptions::derivatives), chained with du/dφ; a per-record slot re-simulates only
+// its record. Frozen slots keep a zero column, unsimulated. Where the sensitivities are not
+// available the evaluation takes forward differences.
 class ProjectedResidual : public ceres::CostFunction {
  public:
-  ProjectedResidual(const FitModel& model, double step, bool central, std::vector<int> frozen = {});
+  ProjectedResidual(const FitModel& model, double step, Derivatives derivatives,
+                    std::vector<int> frozen = {});
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
 
  private:
   const FitModel& model_;
   double step_;
-  bool central_;
+  Derivatives derivatives_;
   std::vector<int> frozen_;
 };
 

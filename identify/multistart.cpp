@@ -78,7 +78,7 @@ std::vector<std::vector<double>> ScanStarts(const FitModel& model, const FitConf
 
 LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<double> u,
                 bool final_stage, int iterations, const std::vector<int>& frozen) {
-  ProjectedResidual residual(model, options.derivative_step, options.central_differences, frozen);
+  ProjectedResidual residual(model, options.derivative_step, options.derivatives, frozen);
   ceres::Problem problem(ProblemOptions());
   std::vector<double> phi(u.size());
   for (size_t i = 0; i < u.size(); ++i) phi[i] = ParameterMap::AngleFromUnit(u[i]);

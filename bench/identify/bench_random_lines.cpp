@@ -14,7 +14,8 @@
 // fit stopped in a wrong minimum; the same or a higher cost and a large |z| mean the data prefer
 // the wrong answer or the standard errors are not calibrated.
 //
-// Usage: bench_random_lines [--cases N (200)] [--first-seed S (1)] [--verbose]
+// Usage: bench_random_lines [--cases N (200)] [--first-seed S (1)] [--threads N]
+//                           [--derivatives sensitivity|forward|central] [--verbose]
 // Exits 1 when a case throws (printed, counted as crashed), else 0.
 #include <glog/logging.h>
 
@@ -120,6 +121,7 @@ int main(int argc, char** argv) {
   unsigned long first_seed = 1;
   bool verbose = false;
   int threads = 1;  // > 1: each case is fitted again on this many threads and compared
+  FitOptions options;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
     if (flag == "--verbose") {
@@ -130,8 +132,13 @@ int main(int argc, char** argv) {
       first_seed = std::strtoul(argv[++i], nullptr, 10);
     } else if (flag == "--threads" && i + 1 < argc) {
       threads = std::atoi(argv[++i]);
+    } else if (flag == "--derivatives" && i + 1 < argc &&
+               ParseDerivatives(argv[i + 1], &options.derivatives)) {
+      ++i;
     } else {
-      std::fprintf(stderr, "usage: %s [--cases N] [--first-seed S] [--threads N] [--verbose]\n",
+      std::fprintf(stderr,
+                   "usage: %s [--cases N] [--first-seed S] [--threads N] "
+                   "[--derivatives sensitivity|forward|central] [--verbose]\n",
                    argv[0]);
       return 2;
     }
@@ -153,11 +160,11 @@ int main(int argc, char** argv) {
       r.description = c.description;
       r.free = static_cast<int>(c.config.free.size());
       const auto start = std::chrono::steady_clock::now();
-      const FitResult fit = Fit(c.prior, c.record, c.config, FitOptions{});
+      const FitResult fit = Fit(c.prior, c.record, c.config, options);
       r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       r.simulations = fit.summary.simulations;
       if (threads > 1) {
-        FitOptions parallel_options;
+        FitOptions parallel_options = options;
         parallel_options.threads = threads;
         const auto parallel_start = std::chrono::steady_clock::now();
         const FitResult parallel = Fit(c.prior, c.record, c.config, parallel_options);
@@ -214,7 +221,7 @@ int main(int argc, char** argv) {
             from_truth.channels[k].weight = fit.channels[k].weight;
           }
         }
-        const FitResult reference = Fit(c.prior, c.record, from_truth, FitOptions{});
+        const FitResult reference = Fit(c.prior, c.record, from_truth, options);
         r.truth_verdict = Verdict(reference.summary);
         r.truth_cost = reference.summary.success ? reference.summary.cost
                                                  : std::numeric_limits<double>::quiet_NaN();
@@ -319,7 +326,8 @@ int main(int argc, char** argv) {
                 r.truth_cost, std::abs(r.truth_scores.worst_z), r.truth_scores.worst_name.c_str(),
                 r.description.c_str());
   }
-  std::printf("\nReproduce: bench_random_lines --cases %d --first-seed %lu --verbose\n", cases,
-              first_seed);
+  std::printf(
+      "\nReproduce: bench_random_lines --cases %d --first-seed %lu --derivatives %s --verbose\n",
+      cases, first_seed, DerivativesName(options.derivatives));
   return crashed > 0 ? 1 : 0;
 }

@@ -22,11 +22,11 @@ namespace {
 
 // The stencil step, relative to the parameter's magnitude.
 constexpr double kRelativeStep = 1e-3;
-// Full sample steps in one phase set before its propagators over the step are built.
-constexpr long kStepsBeforeCaching = 8;
 // Legs whose Taylor series would need more pieces (‖M̃‖∞ τ) take the matrix exponential instead.
 constexpr double kMaxTaylorPieces = 16.0;
 constexpr int kMaxTaylorTerms = 60;
+// Taylor terms a full piece takes (θ = 1 to 1/4 ulp), for the caching rule.
+constexpr double kTypicalTerms = 18.0;
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 // A surface crossed at a rate below this fraction of its terms' size grazes: the event time's
 // derivative is not defined.
@@ -100,19 +100,36 @@ struct ParameterModels {
   }
 };
 
-// Everything the pass needs of one phase set.
-struct PhaseSet {
-  Eigen::MatrixXd m;                      // M (unscaled)
-  Eigen::MatrixXd m_scaled;               // M̃
-  std::vector<Eigen::MatrixXd> m_p;       // M̃_j (empty matrix when M_j = 0)
-  Eigen::MatrixXd torque;                 // T: reduced link torques = T z
-  std::vector<Eigen::MatrixXd> torque_p;  // T_j, built on the first output in the phase set
-  double norm = 0.0;                      // ‖M̃‖∞
-  long full_steps = 0;
-  bool cached = false;
-  Eigen::MatrixXd e;               // exp(M̃ h)
-  std::vector<Eigen::MatrixXd> f;  // F̃_j(h)
+// A non-zero entry of a sparse matrix (M̃ follows the line's tree: a few entries per row).
+struct Entry {
+  int row, col;
+  double value;
 };
+
+// Everything the pass needs of one phase set. S̃ is n × P, row-major, so row i holds component
+// i of every parameter's sensitivity; a stack of per-parameter matrices has row i P + j for
+// parameter j's row i, and one product with a vector gives all of S̃'s update at once.
+struct PhaseSet {
+  Eigen::MatrixXd m;                 // M (unscaled)
+  Eigen::MatrixXd m_scaled;          // M̃
+  std::vector<Entry> sparse;         // M̃'s non-zeros
+  std::vector<Eigen::MatrixXd> m_p;  // M̃_j (empty when M_j = 0)
+  std::vector<Entry> sparse_p;       // the non-zeros of every M̃_j: row i P + j
+  Eigen::MatrixXd torque;            // T: reduced link torques = T z
+  Eigen::MatrixXd torque_scaled;     // T D, per link factor: the scene links' torques of ỹ
+  Eigen::MatrixXd torque_p;          // T_j per link factor, stacked (row j links + l); built on
+  bool has_torque_p = false;         // the first output in the phase set
+  double norm = 0.0;  // ‖[M̃ M̃_j; 0 M̃]‖∞ <= ‖M̃‖∞ + max ‖M̃_j‖∞
+  // Building the propagators over the step costs P exponentials of 2n × 2n; a full step then
+  // costs 2 n² P instead of a Taylor series. They are built once the Taylor work of the full
+  // steps so far exceeds the building's.
+  double taylor_work = 0.0;
+  bool cached = false;
+  Eigen::MatrixXd e;  // exp(M̃ h)
+  Eigen::MatrixXd f;  // F̃_j(h), stacked
+};
+
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 class SensitivityPass final : public HybridObserver {
  public:
@@ -128,6 +145,8 @@ class SensitivityPass final : public HybridObserver {
         given_state_(given_state) {
     const int links = static_cast<int>(model.scene().links.size());
     out_.assign(p_, Eigen::MatrixXd::Zero(samples, links));
+    link_inverse_.resize(links);
+    for (int l = 0; l < links; ++l) link_inverse_[l] = 1.0 / model.shaft_factors().link[l];
     surfaces_p_.resize(p_);
     for (int j = 0; j < p_; ++j) {
       surfaces_p_[j] = parameters_[j].Derivative(
@@ -140,6 +159,11 @@ class SensitivityPass final : public HybridObserver {
 
   void Started(const Eigen::VectorXd& z0, const Phases& /*phases*/) override {
     s_.setZero(n_, p_);
+    s_term_.setZero(n_, p_);
+    s_next_.setZero(n_, p_);
+    y_.setZero(n_);
+    y_term_.setZero(n_);
+    y_next_.setZero(n_);
     for (int j = 0; j < p_; ++j) {
       const Eigen::VectorXd ds = parameters_[j].Derivative(
           model_, [](const Model& m) -> Eigen::MatrixXd { return m.InitialState(); });
@@ -228,18 +252,25 @@ class SensitivityPass final : public HybridObserver {
   void Recorded(int k, const Phases& phases) override {
     if (!unavailable_.empty()) return;
     PhaseSet& data = Data(phases);
-    if (data.torque_p.empty()) {
-      data.torque_p.resize(p_);
+    const int links = static_cast<int>(data.torque.rows());
+    if (!data.has_torque_p) {
+      data.torque_p.resize(links * p_, n_);
       for (int j = 0; j < p_; ++j) {
-        data.torque_p[j] = parameters_[j].Derivative(model_, [&](const Model& m) {
-          return m.LinkTorqueRows(phases, m.SystemMatrix(phases));
-        });
+        data.torque_p.middleRows(j * links, links) =
+            link_inverse_.asDiagonal() * parameters_[j].Derivative(model_, [&](const Model& m) {
+              return m.LinkTorqueRows(phases, m.SystemMatrix(phases));
+            });
       }
+      data.has_torque_p = true;
     }
-    const ShaftFactors& factors = model_.shaft_factors();
+    // ∂τ/∂p_j = T s_j + T_j z, s_j = D S̃_j / σ_j.
+    torque_scratch_.noalias() = data.torque_scaled.lazyProduct(s_);
+    stacked_scratch_.noalias() = data.torque_p * z_;
     for (int j = 0; j < p_; ++j) {
-      const Eigen::VectorXd torque = data.torque * S(j) + data.torque_p[j] * z_;
-      for (int l = 0; l < torque.size(); ++l) out_[j](k, l) = torque[l] / factors.link[l];
+      const double inverse_magnitude = 1.0 / parameters_[j].magnitude;
+      for (int l = 0; l < links; ++l) {
+        out_[j](k, l) = torque_scratch_(l, j) * inverse_magnitude + stacked_scratch_[j * links + l];
+      }
     }
   }
 
@@ -260,81 +291,113 @@ class SensitivityPass final : public HybridObserver {
     data.m = model_.SystemMatrix(phases);
     data.m_scaled = d_inverse_.asDiagonal() * data.m * d_.asDiagonal();
     data.norm = data.m_scaled.cwiseAbs().rowwise().sum().maxCoeff();
+    double largest_p = 0.0;
+    for (int i = 0; i < n_; ++i) {
+      for (int c = 0; c < n_; ++c) {
+        if (data.m_scaled(i, c) != 0.0) data.sparse.push_back({i, c, data.m_scaled(i, c)});
+      }
+    }
     data.m_p.resize(p_);
     for (int j = 0; j < p_; ++j) {
       const Eigen::MatrixXd mp = parameters_[j].Derivative(
           model_, [&](const Model& m) -> Eigen::MatrixXd { return m.SystemMatrix(phases); });
       if (mp.cwiseAbs().maxCoeff() == 0.0) continue;
       data.m_p[j] = parameters_[j].magnitude * (d_inverse_.asDiagonal() * mp * d_.asDiagonal());
+      largest_p = std::max(largest_p, data.m_p[j].cwiseAbs().rowwise().sum().maxCoeff());
+      for (int i = 0; i < n_; ++i) {
+        for (int c = 0; c < n_; ++c) {
+          if (data.m_p[j](i, c) != 0.0) data.sparse_p.push_back({i * p_ + j, c, data.m_p[j](i, c)});
+        }
+      }
     }
+    data.norm += largest_p;
     data.torque = model_.LinkTorqueRows(phases, data.m);
+    data.torque_scaled = link_inverse_.asDiagonal() * data.torque * d_.asDiagonal();
     current_ = &data;
     return data;
   }
 
-  // exp(M̃ τ) and F̃_j(τ) by the matrix exponential of [M̃ M̃_j; 0 M̃] τ.
+  // exp(M̃ τ) and F̃_j(τ) (stacked) by the matrix exponential of [M̃ M̃_j; 0 M̃] τ.
   void Exponentials(const PhaseSet& data, double tau, Eigen::MatrixXd* e,
-                    std::vector<Eigen::MatrixXd>* f) const {
+                    Eigen::MatrixXd* f) const {
     *e = (data.m_scaled * tau).exp();
-    f->assign(p_, Eigen::MatrixXd());
+    f->setZero(n_ * p_, n_);
     Eigen::MatrixXd block = Eigen::MatrixXd::Zero(2 * n_, 2 * n_);
     block.topLeftCorner(n_, n_) = data.m_scaled * tau;
     block.bottomRightCorner(n_, n_) = data.m_scaled * tau;
     for (int j = 0; j < p_; ++j) {
       if (data.m_p[j].size() == 0) continue;
       block.topRightCorner(n_, n_) = data.m_p[j] * tau;
-      (*f)[j] = block.exp().topRightCorner(n_, n_);
+      (*f)(Eigen::seqN(j, n_, p_), Eigen::all) = block.exp().topRightCorner(n_, n_);
     }
+  }
+
+  // S̃ ← E S̃ + [F̃_j ỹ]: the propagators applied.
+  void Apply(const Eigen::MatrixXd& e, const Eigen::MatrixXd& f) {
+    s_next_.noalias() = e * s_;
+    Eigen::Map<Eigen::VectorXd>(s_next_.data(), n_ * p_).noalias() += f * y_;
+    s_.swap(s_next_);
   }
 
   void Propagate(PhaseSet& data, double tau) {
     if (tau <= 0.0) return;
-    const Eigen::VectorXd y = d_inverse_.asDiagonal() * z_;
+    y_.noalias() = d_inverse_.asDiagonal() * z_;
+    const double pieces = std::ceil(data.norm * tau);
     const bool full_step = std::abs(tau - h_) <= 1e-10 * h_;
-    if (full_step && !data.cached && ++data.full_steps >= kStepsBeforeCaching) {
-      Exponentials(data, h_, &data.e, &data.f);
-      data.cached = true;
+    if (full_step && !data.cached) {
+      // Work in multiply-adds: a Taylor term against one exponential of 2n × 2n (≈ 20 (2n)³).
+      const double n = n_;
+      data.taylor_work +=
+          std::max(pieces, 1.0) * kTypicalTerms *
+          static_cast<double>((data.sparse.size() + 1) * (p_ + 1) + data.sparse_p.size());
+      const double build = 0.25 * 8.0 * n * n * n * (1.0 + static_cast<double>(p_));
+      if (pieces > kMaxTaylorPieces || data.taylor_work > build) {
+        Exponentials(data, h_, &data.e, &data.f);
+        data.cached = true;
+      }
     }
     if (full_step && data.cached) {
-      s_ = data.e * s_;
-      for (int j = 0; j < p_; ++j) {
-        if (data.f[j].size() > 0) s_.col(j) += data.f[j] * y;
-      }
+      Apply(data.e, data.f);
       return;
     }
-    const double pieces = std::ceil(data.norm * tau);
     if (pieces > kMaxTaylorPieces) {
-      Eigen::MatrixXd e;
-      std::vector<Eigen::MatrixXd> f;
+      Eigen::MatrixXd e, f;
       Exponentials(data, tau, &e, &f);
-      s_ = e * s_;
-      for (int j = 0; j < p_; ++j) {
-        if (f[j].size() > 0) s_.col(j) += f[j] * y;
-      }
+      Apply(e, f);
       return;
     }
-    // The Taylor series of [ỹ; S̃]' = [M̃ ỹ; M̃ S̃ + M̃_j ỹ] in pieces with ‖M̃ dt‖∞ <= 1.
+    // The Taylor series of [ỹ; S̃]' = [M̃ ỹ; M̃ S̃ + M̃_j ỹ] in pieces with θ = ‖·‖∞ dt <= 1, on
+    // the non-zeros of M̃ and M̃_j, to the term where θ^(K+1)/(K+1)! drops below 1/4 ulp.
     const int count = std::max(1, static_cast<int>(pieces));
     const double dt = tau / count;
-    Eigen::VectorXd y_sum = y, y_term(n_), y_next(n_);
-    Eigen::MatrixXd s_term(n_, p_), s_next(n_, p_);
+    const double theta = data.norm * dt;
+    int terms = 1;
+    for (double bound = theta; terms < kMaxTaylorTerms && bound > 0.25 * kEps; ++terms) {
+      bound *= theta / (terms + 1);
+    }
     for (int piece = 0; piece < count; ++piece) {
-      y_term = y_sum;
-      s_term = s_;
-      for (int k = 1; k <= kMaxTaylorTerms; ++k) {
+      y_term_ = y_;
+      s_term_ = s_;
+      for (int k = 1; k <= terms; ++k) {
         const double factor = dt / k;
-        s_next.noalias() = data.m_scaled * s_term;
-        for (int j = 0; j < p_; ++j) {
-          if (data.m_p[j].size() > 0) s_next.col(j).noalias() += data.m_p[j] * y_term;
+        s_next_.setZero();
+        y_next_.setZero();
+        double* next = s_next_.data();
+        const double* term = s_term_.data();
+        for (const Entry& entry : data.sparse) {
+          const double value = factor * entry.value;
+          double* to = next + static_cast<std::ptrdiff_t>(entry.row) * p_;
+          const double* from = term + static_cast<std::ptrdiff_t>(entry.col) * p_;
+          for (int j = 0; j < p_; ++j) to[j] += value * from[j];
+          y_next_[entry.row] += value * y_term_[entry.col];
         }
-        s_term = factor * s_next;
-        y_next.noalias() = data.m_scaled * y_term;
-        y_term = factor * y_next;
-        y_sum += y_term;
-        s_ += s_term;
-        const double term = std::max(y_term.cwiseAbs().maxCoeff(), s_term.cwiseAbs().maxCoeff());
-        const double sum = std::max(y_sum.cwiseAbs().maxCoeff(), s_.cwiseAbs().maxCoeff());
-        if (term <= 0.25 * kEps * sum) break;
+        for (const Entry& entry : data.sparse_p) {
+          next[entry.row] += factor * entry.value * y_term_[entry.col];
+        }
+        s_term_.swap(s_next_);
+        y_term_.swap(y_next_);
+        y_ += y_term_;
+        s_ += s_term_;
       }
     }
   }
@@ -347,9 +410,14 @@ class SensitivityPass final : public HybridObserver {
   bool given_state_;
   std::vector<Eigen::MatrixXd> surfaces_p_;  // G_j (unscaled)
   std::map<Phases, PhaseSet> cache_;
-  PhaseSet* current_ = nullptr;  // the phase set of the latest leg
-  Eigen::MatrixXd s_;            // S̃
-  Eigen::VectorXd z_;            // the state at the latest stop
+  PhaseSet* current_ = nullptr;   // the phase set of the latest leg
+  RowMatrix s_;                   // S̃
+  Eigen::VectorXd z_;             // the state at the latest stop
+  Eigen::VectorXd link_inverse_;  // 1 / each scene link's shaft factor
+  // Scratch of Propagate and Recorded.
+  Eigen::VectorXd y_, y_term_, y_next_, stacked_scratch_;
+  RowMatrix s_term_, s_next_;
+  Eigen::MatrixXd torque_scratch_;
   std::vector<Eigen::MatrixXd> out_;
   std::string unavailable_;
 };

@@ -185,3 +185,17 @@ TEST_CASE("a record in kN*m fits to the N*m record's values and reports in kN*m"
   CHECK_THAT(svg, Contains("torque, kN\u00b7m") && Contains("residual, kN\u00b7m"));
   CHECK_THAT(svg, !Contains("torque, N\u00b7m") && !Contains("torque, MN\u00b7m"));
 }
+
+TEST_CASE("The derivatives key takes sensitivity, forward or central") {
+  CHECK_FALSE(Load(kFree).derivatives.has_value());
+  for (const auto kind :
+       {Derivatives::kSensitivity, Derivatives::kForward, Derivatives::kCentral}) {
+    const auto config =
+        Load(std::string("[fit]\nderivatives = \"") + DerivativesName(kind) + "\"\n" + kFree);
+    REQUIRE(config.derivatives.has_value());
+    CHECK(*config.derivatives == kind);
+  }
+  CHECK_THROWS_WITH(Load(std::string("[fit]\nderivatives = \"adjoint\"\n") + kFree),
+                    Contains("fit.toml") && Contains("derivatives") && Contains("\"central\"") &&
+                        Contains("adjoint"));
+}

@@ -84,6 +84,12 @@ struct ChannelSpec {
   std::optional<double> offset_limit_Nm;  // none: the channel's peak |value| in the window
 };
 
+// How the fit differentiates the simulation while iterating (FitOptions::derivatives):
+// "sensitivity", "forward", "central"; ParseDerivatives returns false for anything else.
+enum class Derivatives { kSensitivity, kForward, kCentral };
+const char* DerivativesName(Derivatives derivatives);
+bool ParseDerivatives(const std::string& text, Derivatives* derivatives);
+
 struct FitConfig {
   std::vector<FreeParameter> free;
   std::vector<ChannelSpec> channels;
@@ -92,6 +98,8 @@ struct FitConfig {
   int scan_points = kDefaultScanPoints;
   int starts = kDefaultStarts;
   unsigned seed = 1;
+  // [fit] derivatives: overrides FitOptions::derivatives when given.
+  std::optional<Derivatives> derivatives;
   // [fit] time_origin: the record time (s) that is the model's time zero in every record; none:
   // each record's first sample.
   std::optional<double> time_origin_s;

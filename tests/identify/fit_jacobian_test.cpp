@@ -1,0 +1,86 @@
+// The fit's Jacobian from sensitivities (issue 15 item 1): ProjectedResidual with
+// Derivatives::kSensitivity against central differences of the same projected residual.
+// identify/fit_model.h comes first: glog (through Ceres) defines CHECK, which Catch's replaces.
+#include "identify/fit_model.h"
+#undef CHECK
+
+#include <algorithm>
+#include <catch2/catch.hpp>
+#include <cstdio>
+#include <random>
+
+#include "identify/random_line.h"
+#include "millkit/identify/fit.h"
+
+namespace millkit {
+
+// The torques' derivatives chained with the parameter map, the gains and offsets solved again,
+// on random lines at random points.
+TEST_CASE("The fit's projected Jacobian from sensitivities agrees with central differences",
+          "[sensitivity]") {
+  std::mt19937_64 random(17);
+  int compared = 0;
+  double worst = 0.0;
+  for (unsigned long seed = 30; seed < 42; ++seed) {
+    const auto line = identify::MakeRandomLineCase(seed);
+    const std::vector<double> weights(line.config.channels.size(), 1.0);
+    const std::vector<identify::Oscillogram> records{line.record};
+    const identify::FitModel model(line.prior, records, line.config, weights);
+    const int p = model.parameters();
+    std::vector<double> phi(p);
+    for (double& angle : phi) angle = std::uniform_real_distribution<double>(-1.2, 1.2)(random);
+    const double* parameters[] = {phi.data()};
+    Eigen::VectorXd r_exact(model.residuals()), r_reference(model.residuals());
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> exact(model.residuals(),
+                                                                                 p),
+        reference(model.residuals(), p);
+    double* jacobian_exact[] = {exact.data()};
+    double* jacobian_reference[] = {reference.data()};
+    const identify::ProjectedResidual sensitivity(model, 1e-6, identify::Derivatives::kSensitivity);
+    const identify::ProjectedResidual central(model, 1e-6, identify::Derivatives::kCentral);
+    if (!sensitivity.Evaluate(parameters, r_exact.data(), jacobian_exact)) continue;
+    REQUIRE(central.Evaluate(parameters, r_reference.data(), jacobian_reference));
+    CHECK(r_exact == r_reference);
+    for (int j = 0; j < p; ++j) {
+      INFO("seed " << seed << " " << model.slot(j).name);
+      const double size = reference.col(j).cwiseAbs().maxCoeff();
+      const double difference = (exact.col(j) - reference.col(j)).cwiseAbs().maxCoeff();
+      // The differences' own error (step 1e-6 of the unit range: roundoff ≈ 1e-10 of the
+      // residuals over 1e-6) bounds what can be checked: 1e-5 of the column's size, or 1e-6 of
+      // the largest column for a parameter the residuals hardly depend on (measured: 6e-7).
+      CHECK(difference <= 1e-5 * size + 1e-6 * reference.cwiseAbs().maxCoeff());
+      worst = std::max(worst, difference / (size + 1e-2 * reference.cwiseAbs().maxCoeff()));
+      ++compared;
+    }
+  }
+  CHECK(compared >= 30);
+  std::printf("projected Jacobian: %d columns, worst difference %.3g of the column's size\n",
+              compared, worst);
+}
+
+// A fit iterated with sensitivities and one with forward differences reach the same minimum:
+// every value within 0.1 standard error, the same verdict (random lines not used to tune).
+TEST_CASE("Fits with sensitivities and with forward differences agree", "[sensitivity]") {
+  for (const unsigned long seed : {11ul, 23ul}) {
+    INFO("seed " << seed);
+    const auto line = identify::MakeRandomLineCase(seed);
+    identify::FitOptions options;
+    options.derivatives = identify::Derivatives::kSensitivity;
+    const auto sensitivity = identify::Fit(line.prior, line.record, line.config, options);
+    options.derivatives = identify::Derivatives::kForward;
+    const auto forward = identify::Fit(line.prior, line.record, line.config, options);
+    REQUIRE(sensitivity.summary.success);
+    REQUIRE(forward.summary.success);
+    CHECK(sensitivity.summary.verdict == forward.summary.verdict);
+    REQUIRE(sensitivity.parameters.size() == forward.parameters.size());
+    for (size_t i = 0; i < forward.parameters.size(); ++i) {
+      INFO(forward.parameters[i].name);
+      CHECK(std::abs(sensitivity.parameters[i].value - forward.parameters[i].value) <=
+            0.1 * forward.parameters[i].standard_error);
+    }
+    // Fewer simulations: one run gives every parameter's column.
+    CHECK(sensitivity.summary.simulations < forward.summary.simulations);
+  }
+}
+
+}  // namespace millkit
