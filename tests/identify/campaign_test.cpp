@@ -125,7 +125,7 @@ int ParameterIndex(const CampaignResult& result, const std::string& name) {
 
 }  // namespace
 
-TEST_CASE("ISO 8601 dates and date-times read as UTC seconds; impossible ones are refused",
+TEST_CASE("ISO 8601 dates and date-times read as UTC seconds, impossible ones are refused",
           "[campaign]") {
   // 946684800 s: the Unix time of 2000-01-01T00:00:00Z (POSIX `date -u -d 2000-01-01 +%s`).
   constexpr double k2000 = 946684800.0;
@@ -230,7 +230,7 @@ TEST_CASE("rows of one group are one fit: a shared gap, a bite time per record",
   CHECK(std::isfinite(a.value[bite]));
 }
 
-TEST_CASE("a missing and a corrupt record are reported in their rows; the campaign exits 3",
+TEST_CASE("a missing and a corrupt record are reported in their rows, and the campaign exits 3",
           "[campaign]") {
   const Campaign campaign("records/gone.csv,2026-03-01,F1\nrecords/bad.csv,2026-03-02,F1\n");
   WriteText(campaign.dir / "records/bad.csv", "time,spindle\n0,1\n0.001,abc\n");
