@@ -33,6 +33,7 @@ declare -A seeds=(
   [balancer_fuzz]="$data/balancer/*.toml"
   [comtrade_fuzz]=""
   [mat_record_fuzz]=""
+  [campaign_manifest_fuzz]=""
 )
 mkdir -p "$build/fuzz/artifacts"
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=1}

@@ -1,7 +1,10 @@
 // millkit identify SCENE.toml --data record.csv [--data record2.csv ...] [--config fit.toml]
 //                  --out fit.json [--plot fit.svg] [--trace fit.csv]
+// millkit identify SCENE.toml --campaign manifest.csv [--config fit.toml] --out campaign.csv
+//                  [--trend trend.csv] [--plot PREFIX] (a campaign: millkit/identify/campaign.h)
 #include <glog/logging.h>
 
+#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <memory>
@@ -11,6 +14,7 @@
 
 #include "cli/commands.h"
 #include "millkit/driveline/scene.h"
+#include "millkit/identify/campaign.h"
 #include "millkit/identify/fit.h"
 #include "millkit/identify/fit_config.h"
 #include "millkit/identify/fit_report.h"
@@ -27,6 +31,8 @@ namespace {
 struct IdentifyArgs {
   std::string scene;
   std::vector<std::string> data;
+  std::string campaign;
+  std::string trend;
   std::string config;
   std::string out;
   std::string plot;
@@ -64,10 +70,106 @@ std::string ParameterTable(const identify::FitResult& result, bool several_recor
   return out.str();
 }
 
+// The trend plot of each link: PREFIX.<link>.svg.
+std::string TrendPlotPath(const std::string& prefix, const std::string& link) {
+  return prefix + "." + link + ".svg";
+}
+
+void RunCampaign(const IdentifyArgs& args) {
+  if (!args.trace.empty()) {
+    throw InputError("option --trace: not available with --campaign (fit one record with --data)");
+  }
+  identify::CampaignOptions options;
+  options.threads = args.threads;
+  options.Validate();
+  const driveline::Scene scene = driveline::LoadScene(args.scene);
+  const identify::CampaignManifest manifest =
+      identify::LoadCampaignManifest(args.campaign, args.config, args.time_column);
+  // Every link's plot path is checked before the work; only links with a fitted parameter are
+  // written.
+  std::vector<std::string> inputs = manifest.Inputs();
+  inputs.push_back(args.scene);
+  inputs.push_back(args.config);
+  std::vector<std::pair<std::string, std::string>> outputs = {{"--out", args.out},
+                                                              {"--trend", args.trend}};
+  if (!args.plot.empty()) {
+    for (const auto& link : scene.links) {
+      outputs.emplace_back("--plot", TrendPlotPath(args.plot, link.name));
+    }
+  }
+  CheckOutputPaths(outputs, inputs);
+
+  ProgressLine progress(args.quiet ? nullptr : &std::cerr, "identify campaign");
+  options.progress = [&progress](int done, int total) {
+    progress.Update(std::to_string(done) + " of " + std::to_string(total) + " fits done");
+  };
+  const identify::CampaignResult result = identify::RunCampaign(scene, manifest, options);
+  progress.Finish();
+
+  // Everything is computed before the first file is written, and committed together.
+  AtomicFile table(args.out);
+  table.stream() << identify::CampaignCsv(manifest, result);
+  std::optional<AtomicFile> trend_file;
+  if (!args.trend.empty()) {
+    trend_file.emplace(args.trend);
+    trend_file->stream() << identify::CampaignTrendCsv(manifest, result);
+  }
+  std::vector<std::unique_ptr<AtomicFile>> plots;
+  if (!args.plot.empty()) {
+    for (const auto& link : identify::CampaignLinks(scene, result)) {
+      plots.push_back(std::make_unique<AtomicFile>(TrendPlotPath(args.plot, link)));
+      plots.back()->stream() << identify::CampaignPlotSvg(
+          manifest, result, link,
+          "millkit identify: " + scene.name + ", " + link + " over " +
+              std::filesystem::path(manifest.source).filename().string());
+    }
+  }
+  table.Commit();
+  if (trend_file) trend_file->Commit();
+  for (auto& plot : plots) plot->Commit();
+
+  std::cout << "campaign: " << manifest.rows.size() << " records in " << manifest.fits.size()
+            << " fits, " << result.failed_rows << " not ok; " << FixedNumber(result.wall_time_s, 1)
+            << " s on " << args.threads << (args.threads == 1 ? " thread\n" : " threads\n");
+  for (const auto& trend : result.trends) {
+    std::cout << "trend " << trend.stand << " " << trend.parameter << ": ";
+    if (trend.defined) {
+      std::cout << ValueWithError(trend.slope_per_day, trend.slope_se) << " " << trend.unit
+                << "/day over " << trend.points << " fits (from "
+                << ValueWithError(trend.value_at_epoch, trend.value_at_epoch_se) << " "
+                << trend.unit << " at " << manifest.epoch << ")\n";
+    } else {
+      std::cout << "none (" << trend.points << " ok fits with a standard error)\n";
+    }
+  }
+  for (size_t r = 0; r < manifest.rows.size(); ++r) {
+    const auto& row = result.rows[r];
+    if (row.verdict == "ok") continue;
+    std::cerr << "millkit identify: " << manifest.source << ": line " << manifest.rows[r].line
+              << " (" << manifest.rows[r].file << "): " << row.verdict << ": " << row.reason
+              << "\n";
+  }
+  if (!result.AllOk()) {
+    std::cerr << "millkit identify: " << result.failed_rows << " of " << manifest.rows.size()
+              << " records not ok; each is reported in its row (verdict, reason)\n";
+    throw NotTrusted("identify");
+  }
+}
+
 void RunIdentify(const IdentifyArgs& args) {
   // Ceres logs through glog; a start that fails to simulate is expected data, reported in the
   // summary, not a message on stderr.
   FLAGS_minloglevel = 3;
+  if (args.data.empty() == args.campaign.empty()) {
+    throw InputError(
+        "give either --data (one fit of one or more records) or --campaign (a "
+        "manifest of records fitted one by one)");
+  }
+  if (!args.campaign.empty()) {
+    RunCampaign(args);
+    return;
+  }
+  if (!args.trend.empty()) throw InputError("option --trend: only with --campaign");
   // Open every output first: an unwritable directory fails before minutes of fitting, and a failed
   // fit leaves none of them behind.
   std::vector<std::string> inputs = args.data;
@@ -146,25 +248,37 @@ void AddIdentifyCommand(CLI::App& app) {
       "for any other verdict (every output still written), 2 for bad input, 1 when no fit "
       "could be made. Reference: docs/identify.md");
   command->add_option("scene", args->scene, "Scene TOML file")->required();
-  command
-      ->add_option("--data", args->data,
-                   "Record: a table (CSV, ';' or tab separated, iba ASCII export), a "
-                   "MATLAB .mat (v5 or v7.3) or a COMTRADE .cfg (docs/records.md). Give it "
-                   "once per record to fit several bites together (shared scene parameters; "
-                   "bite time, gain and offset per record)")
-      ->required();
+  command->add_option("--data", args->data,
+                      "Record: a table (CSV, ';' or tab separated, iba ASCII export), a "
+                      "MATLAB .mat (v5 or v7.3) or a COMTRADE .cfg (docs/records.md). Give it "
+                      "once per record to fit several bites together (shared scene parameters; "
+                      "bite time, gain and offset per record)");
+  command->add_option("--campaign", args->campaign,
+                      "Campaign manifest CSV instead of --data: columns file, time (ISO 8601), "
+                      "stand, optional group, config, time_column; each record (or group) fitted "
+                      "on its own, one table row per record, wear trends per stand and link "
+                      "(docs/identify.md#campaigns)");
   command->add_option("--time-column", args->time_column,
                       "The records' time column (or MAT variable) by name or iba signal ID "
                       "(default: the one named time, t, Time, time_s or Time [s])");
   command->add_option("--config", args->config,
                       "Fit TOML: [fit], [set], [[free]], [[channel]] (docs/identify.md; default: "
                       "damping and backlash of every link, bite_time; channels named like links)");
-  command->add_option("--out", args->out, "Fit result JSON (written atomically)")->required();
-  command->add_option("--plot", args->plot, "SVG of measured vs fitted torque and residual");
+  command
+      ->add_option("--out", args->out,
+                   "Fit result JSON (written atomically); with --campaign the table CSV")
+      ->required();
+  command->add_option("--plot", args->plot,
+                      "SVG of measured vs fitted torque and residual; with --campaign a prefix: "
+                      "PREFIX.<link>.svg, each link parameter against date with the trend");
+  command->add_option("--trend", args->trend,
+                      "With --campaign: CSV of the trend lines (slope per day with its standard "
+                      "error, per stand and link parameter)");
   command->add_option("--trace", args->trace, "CSV of measured, fitted and residual per channel");
   command->add_option("--threads", args->threads,
                       "Worker threads of the search (scan, starts, hops, probes; default 1, "
-                      "1 ... 256). The result is the same for any count");
+                      "1 ... 256); with --campaign, fits run at once (each on one thread). The "
+                      "result is the same for any count");
   command->add_flag("--quiet", args->quiet, "No progress line on stderr");
   command->callback([args] { RunIdentify(*args); });
 }

@@ -21,6 +21,7 @@ std::string InCommandLineTerms(std::string message) {
       {"SimulationOptions::rtol", "option --rtol"},
       {"SimulationOptions::atol", "option --atol"},
       {"RunnerOptions::threads", "option --threads"},
+      {"CampaignOptions::threads", "option --threads"},
       {"TableOptions::encoder_deg", "option --encoder-deg"},
       {"ForcesOptions::shape_factor", "option --shape-factor"},
       {"ForcesOptions::mw_override_Nm", "option --mw-nm"},

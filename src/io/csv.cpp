@@ -288,6 +288,66 @@ CsvTable ReadCsv(const std::filesystem::path& path) {
   return ParseCsv(buffer.str(), path.string());
 }
 
+int TextTable::Find(const std::string& name) const {
+  for (size_t j = 0; j < columns.size(); ++j) {
+    if (columns[j] == name) return static_cast<int>(j);
+  }
+  return -1;
+}
+
+TextTable ParseTextCsv(const std::string& text, const std::string& source) {
+  TextTable table;
+  table.source = source;
+  std::istringstream in(text);
+  std::string line;
+  int line_number = 0;
+  bool trailing_separator = false;
+  char separator = ',';
+  while (std::getline(in, line)) {
+    ++line_number;
+    if (line_number == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
+    const std::string trimmed = Trim(line);
+    if (trimmed.empty() || trimmed[0] == '#') continue;
+    if (table.header_line == 0) {
+      separator = DetectSeparator(line, Line(source, line_number));
+      std::vector<std::string> cells = SplitCells(line, separator);
+      if (cells.size() > 1 && cells.back().empty()) {
+        cells.pop_back();
+        trailing_separator = true;
+      }
+      for (size_t j = 0; j < cells.size(); ++j) {
+        if (cells[j].empty()) {
+          throw InputError(Line(source, line_number) + ": header column " + std::to_string(j + 1) +
+                           " has no name");
+        }
+      }
+      table.columns = cells;
+      table.header_line = line_number;
+      continue;
+    }
+    std::vector<std::string> cells = SplitCells(line, separator);
+    if (trailing_separator && cells.size() == table.columns.size() + 1 && cells.back().empty()) {
+      cells.pop_back();
+    }
+    if (cells.size() != table.columns.size()) {
+      throw InputError(Line(source, line_number) + ": " + std::to_string(cells.size()) +
+                       " cells, the header has " + std::to_string(table.columns.size()));
+    }
+    table.rows.push_back(std::move(cells));
+    table.line_numbers.push_back(line_number);
+  }
+  if (table.header_line == 0) throw InputError(source + ": empty file, expected a header row");
+  return table;
+}
+
+TextTable ReadTextCsv(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path.string() + ": cannot open file");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return ParseTextCsv(buffer.str(), path.string());
+}
+
 void RequireUnits(const CsvTable& table,
                   const std::map<std::string, std::vector<std::string>>& accepted) {
   for (size_t j = 0; j < table.units.size() && j < table.columns.size(); ++j) {

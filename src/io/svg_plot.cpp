@@ -310,12 +310,21 @@ void Text(std::string* out, double x, double y, const std::string& anchor, int s
           "</text>\n";
 }
 
+bool HasErrorBar(const PlotSeries& s, size_t i) {
+  return i < s.y_error.size() && std::isfinite(s.y_error[i]) && s.y_error[i] > 0.0;
+}
+
 void CheckPanel(const PlotPanel& panel) {
   for (const auto& s : panel.series) {
     if (s.x.size() != s.y.size()) {
       throw std::invalid_argument("RenderSvgPlot: series '" + s.label + "' has " +
                                   std::to_string(s.x.size()) + " x and " +
                                   std::to_string(s.y.size()) + " y values");
+    }
+    if (!s.y_error.empty() && s.y_error.size() != s.x.size()) {
+      throw std::invalid_argument("RenderSvgPlot: series '" + s.label + "' has " +
+                                  std::to_string(s.x.size()) + " x values and " +
+                                  std::to_string(s.y_error.size()) + " error bars");
     }
   }
   const PlotHeatMap& map = panel.heat_map;
@@ -372,6 +381,10 @@ void RenderPanel(const PlotPanel& panel, int index, double top, const PlotOption
       x_hi = std::max(x_hi, s.x[i]);
       y_lo = std::min(y_lo, s.y[i]);
       y_hi = std::max(y_hi, s.y[i]);
+      if (HasErrorBar(s, i)) {
+        if (probe_y.Drawable(s.y[i] - s.y_error[i])) y_lo = std::min(y_lo, s.y[i] - s.y_error[i]);
+        y_hi = std::max(y_hi, s.y[i] + s.y_error[i]);
+      }
     }
   }
   std::vector<double> x_edges, y_edges;
@@ -527,6 +540,22 @@ void RenderPanel(const PlotPanel& panel, int index, double top, const PlotOption
         out += MarkerShape(look.marker, px(s.x[i]), py(s.y[i]), look.radius);
       }
       out += "</g>\n";
+      // Error bars: a vertical line with short caps (clipped to the axis on a log scale).
+      std::string bars;
+      for (size_t i = 0; i < s.x.size(); ++i) {
+        if (!HasErrorBar(s, i) || !sx.Drawable(s.x[i]) || !sy.Drawable(s.y[i])) continue;
+        const double low = s.y[i] - s.y_error[i];
+        const double x = px(s.x[i]);
+        const double y0 = sy.Drawable(low) ? py(low) : plot_top + height;
+        const double y1 = py(s.y[i] + s.y_error[i]);
+        const double cap = look.radius + 1.0;
+        bars += "M" + Px(x) + " " + Px(y0) + "V" + Px(y1) + "M" + Px(x - cap) + " " + Px(y0) + "H" +
+                Px(x + cap) + "M" + Px(x - cap) + " " + Px(y1) + "H" + Px(x + cap);
+      }
+      if (!bars.empty()) {
+        out += "<path class=\"error-bars\" fill=\"none\" stroke=\"" + look.colour +
+               "\" stroke-width=\"1\" d=\"" + bars + "\"/>\n";
+      }
     }
   }
   if (!has_map) {

@@ -56,3 +56,19 @@ TEST_CASE("A units row is honoured only where it is checked", "[csv]") {
                                         {{"time", {"s"}}, {"torque", {"N*m"}}}));
   REQUIRE_THROWS_WITH(millkit::RequireUnits(table, {}), Contains("give no units row"));
 }
+
+TEST_CASE("A text table keeps every cell as text, quoted cells unquoted", "[csv]") {
+  const auto table = millkit::ParseTextCsv(
+      "\xEF\xBB\xBF"
+      "file;time;stand\r\n# comment\r\n\"a;b.csv\"; 2026-01-05 ;F1\r\n\r\nc.csv;;\r\n",
+      "m.csv");
+  REQUIRE(table.columns == std::vector<std::string>{"file", "time", "stand"});
+  REQUIRE(table.rows.size() == 2);
+  CHECK(table.rows[0] == std::vector<std::string>{"a;b.csv", "2026-01-05", "F1"});
+  CHECK(table.rows[1] == std::vector<std::string>{"c.csv", "", ""});
+  CHECK(table.line_numbers == std::vector<int>{3, 5});
+  CHECK(table.Find("stand") == 2);
+  CHECK(table.Find("group") == -1);
+  REQUIRE_THROWS_WITH(millkit::ParseTextCsv("file,time\na.csv\n", "m.csv"),
+                      Contains("m.csv: line 2: 1 cells, the header has 2"));
+}

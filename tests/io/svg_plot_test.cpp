@@ -257,3 +257,28 @@ TEST_CASE("a series whose x and y differ in length is refused", "[svg]") {
   panel.series.push_back({"bad", {0, 1, 2}, {0, 1}});
   CHECK_THROWS_AS(RenderSvgPlot({panel}), std::invalid_argument);
 }
+
+TEST_CASE("error bars are drawn about their markers and widen the y axis to hold them", "[svg]") {
+  PlotPanel panel;
+  PlotSeries points{"values", {0, 1, 2}, {1, 2, 1.5}, PlotSeries::Style::kMarkers};
+  points.y_error = {0.5, 0.0, std::numeric_limits<double>::quiet_NaN()};  // one bar only
+  panel.series.push_back(points);
+  const std::string svg = RenderSvgPlot({panel});
+  REQUIRE(Count(svg, "class=\"error-bars\"") == 1);
+  const auto at = svg.find("class=\"error-bars\"");
+  const std::string path = svg.substr(at, svg.find("/>", at) - at);
+  CHECK(Count(path, "M") == 3);  // the bar and its two caps
+  // The data span 1 … 2; the bar reaches 0.5: ticks at a step of 0.5 from 0.5 (without the bar:
+  // a step of 0.2 from 1.0).
+  CHECK_THAT(svg, Contains(">0.5</text>"));
+  CHECK_THAT(svg, Contains(">1.5</text>"));
+  CHECK(Count(svg, ">1.2</text>") == 0);
+}
+
+TEST_CASE("a series with error bars for some points only is refused", "[svg]") {
+  PlotPanel panel;
+  PlotSeries points{"bad", {0, 1, 2}, {0, 1, 2}, PlotSeries::Style::kMarkers};
+  points.y_error = {0.1, 0.1};
+  panel.series.push_back(points);
+  CHECK_THROWS_AS(RenderSvgPlot({panel}), std::invalid_argument);
+}

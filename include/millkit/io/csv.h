@@ -57,4 +57,23 @@ void RequireUnits(const CsvTable& table,
 // Throws InputError unless column `column` strictly increases down the table (row named).
 void RequireStrictlyIncreasing(const CsvTable& table, int column);
 
+// A table of text cells (a manifest listing files, dates and names): the same dialect as ReadCsv
+// (byte-order mark, ',', ';' or tab, quotes, trailing separators, CRLF, blank and '#' lines),
+// every cell kept as trimmed, unquoted text. No units row, no iba export.
+struct TextTable {
+  std::string source;
+  std::vector<std::string> columns;
+  int header_line = 0;
+  std::vector<std::vector<std::string>> rows;  // rows[i][j]: data row i, column j
+  std::vector<int> line_numbers;               // line in the file of each data row (1-based)
+
+  // Index of the column named `name`, −1 when absent.
+  int Find(const std::string& name) const;
+};
+
+// Throws InputError (file and line named) on an unreadable or empty file, a header cell without
+// a name, or a row with the wrong number of cells.
+TextTable ReadTextCsv(const std::filesystem::path& path);
+TextTable ParseTextCsv(const std::string& text, const std::string& source);
+
 }  // namespace millkit

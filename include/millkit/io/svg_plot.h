@@ -31,6 +31,9 @@ struct PlotSeries {
   std::vector<double> y;  // same length as x
   Style style = Style::kLine;
   Emphasis emphasis = Emphasis::kNormal;
+  // Vertical error bars ± y_error[i] about each marker (empty: none; else the length of x). A
+  // non-finite or non-positive entry draws no bar at that point. The bars count in the axis range.
+  std::vector<double> y_error = {};
 };
 
 // Cells coloured by value on a sequential colour scale, with a colour bar beside the panel (in
@@ -69,7 +72,8 @@ struct PlotOptions {
   double panel_height_px = 360.0;
 };
 
-// Renders the panels. Throws std::invalid_argument when a series' x and y differ in length, or a
+// Renders the panels. Throws std::invalid_argument when a series' x and y (or y_error) differ in
+// length, or a
 // heat map's z is not x.size() × y.size() or its centres are not strictly ascending.
 std::string RenderSvgPlot(const std::vector<PlotPanel>& panels, const PlotOptions& options = {});
 

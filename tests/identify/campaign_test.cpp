@@ -1,0 +1,330 @@
+// Identification campaigns (issue 15 item 3): a manifest of records over weeks, each fitted, the
+// gap's wear trend recovered; failed rows reported in place; a bad manifest stops before any
+// output; the same numbers on any thread count.
+#include "millkit/identify/campaign.h"
+
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "millkit/driveline/scene.h"
+#include "millkit/driveline/scene_parameter.h"
+#include "millkit/identify/oscillogram.h"
+#include "millkit/identify/record_generator.h"
+#include "millkit/io/input_error.h"
+#include "support/run_cli.h"
+
+namespace millkit::identify {
+namespace {
+
+using Catch::Matchers::Contains;
+using millkit::testing::ReadText;
+using millkit::testing::RunMillkit;
+using millkit::testing::ScratchDir;
+using millkit::testing::WriteText;
+
+// A two-mass line whose spindle rattles in its gap: motor 2000, roll 800 kg·m², spindle 5e6
+// N·m/rad (one mode at 14.9 Hz), damping 5000 N·m·s/rad (ζ ≈ 5 %), gap 10 mrad in the prior;
+// the roll load −150 kN·m twists the spindle by about twice the gap.
+constexpr const char* kScene = R"([scene]
+name = "two-mass campaign line"
+duration = 0.3
+sample_rate = 4000
+
+[initial]
+speed = 10.0
+
+[[mass]]
+name = "motor"
+inertia = 2000.0
+[[mass]]
+name = "roll"
+inertia = 800.0
+
+[[link]]
+name = "spindle"
+between = ["motor", "roll"]
+stiffness = 5.0e6
+damping = 5000.0
+backlash = 0.010
+
+[[torque]]
+at = "roll"
+after = -150000.0
+start = 0.05
+rise = 0.008
+)";
+
+// The truth: the gap opens by kWearPerDay from kGapAtDay0; damping and bite time stay.
+constexpr double kGapAtDay0_rad = 0.008;
+constexpr double kWearPerDay_rad = 1.0e-4;
+constexpr double kTrueDamping = 5200.0;
+constexpr double kTrueBite_s = 0.052;
+// Record times as a logger would stamp them, and their days after the first (by hand).
+struct Stamp {
+  const char* iso;
+  double day;
+};
+constexpr Stamp kStamps[] = {
+    {"2026-01-05", 0.0},         {"2026-01-15T08:00:00", 10.0 + 8.0 / 24.0}, {"2026-01-25", 20.0},
+    {"2026-02-04T12:00Z", 30.5}, {"2026-02-14T06:00:00+06:00", 40.0},        {"2026-02-24", 50.0}};
+// Each ok fit lands within this many standard errors of its truth (as the bundled record's test
+// in identify_cli_test.cpp); the trend's slope within the issue's 3.
+constexpr double kValueSe = 4.0;
+constexpr double kSlopeSe = 3.0;
+
+double TrueGap(double day) { return kGapAtDay0_rad + kWearPerDay_rad * day; }
+
+// A record of the line with the gap of `day`: 2 kHz, 1 % noise, 12-bit ADC, gain and offset off.
+std::string RecordCsv(const driveline::Scene& prior, double day, unsigned long seed) {
+  driveline::Scene truth = prior;
+  driveline::ParseSceneParameter(truth, "spindle.backlash", "test").Set(TrueGap(day), &truth);
+  driveline::ParseSceneParameter(truth, "spindle.damping", "test").Set(kTrueDamping, &truth);
+  driveline::ParseSceneParameter(truth, "bite_time", "test").Set(kTrueBite_s, &truth);
+  RecordSpec spec;
+  spec.defects.sample_rate_Hz = 2000.0;
+  spec.defects.noise_fraction = 0.01;
+  spec.defects.bits = 12;
+  spec.defects.seed = seed;
+  spec.channels = {{"spindle", truth.LinkIndex("spindle"), 1.02, 500.0}};
+  return FormatOscillogram(GenerateRecord(truth, spec));
+}
+
+// The scene, six records and their manifest in a scratch directory (records in a subdirectory:
+// manifest paths are relative to the manifest).
+struct Campaign {
+  ScratchDir dir;
+  std::string scene_path = (dir / "scene.toml").string();
+  std::string manifest_path = (dir / "manifest.csv").string();
+  driveline::Scene scene;
+
+  explicit Campaign(const std::string& extra_rows = "") {
+    WriteText(scene_path, kScene);
+    scene = driveline::LoadScene(scene_path);
+    std::filesystem::create_directories(dir / "records");
+    std::string manifest = "file,time,stand\n";
+    for (size_t k = 0; k < std::size(kStamps); ++k) {
+      const std::string file = "records/r" + std::to_string(k) + ".csv";
+      WriteText(dir / file, RecordCsv(scene, kStamps[k].day, 100 + k));
+      manifest += file + "," + kStamps[k].iso + ",F1\n";
+    }
+    WriteText(manifest_path, manifest + extra_rows);
+  }
+  std::string Cli(const std::string& options) const {
+    return "identify '" + scene_path + "' --campaign '" + manifest_path + "' --quiet " + options;
+  }
+};
+
+int ParameterIndex(const CampaignResult& result, const std::string& name) {
+  for (size_t p = 0; p < result.parameters.size(); ++p) {
+    if (result.parameters[p].name == name) return static_cast<int>(p);
+  }
+  return -1;
+}
+
+}  // namespace
+
+TEST_CASE("ISO 8601 dates and date-times read as UTC seconds, impossible ones are refused",
+          "[campaign]") {
+  // 946684800 s: the Unix time of 2000-01-01T00:00:00Z (POSIX `date -u -d 2000-01-01 +%s`).
+  constexpr double k2000 = 946684800.0;
+  CHECK(ParseIsoTime("1970-01-01") == 0.0);
+  CHECK(ParseIsoTime("2000-01-01") == k2000);
+  CHECK(ParseIsoTime("2000-01-01T00:00:00Z") == k2000);
+  CHECK(ParseIsoTime("2000-01-01 01:30") == k2000 + 5400.0);
+  CHECK(ParseIsoTime("2000-01-01T02:00:15+02:00") == k2000 + 15.0);
+  CHECK(ParseIsoTime("1999-12-31T19:00:00-0500") == k2000);
+  CHECK(ParseIsoTime("2000-01-01T00:00:00.25") == k2000 + 0.25);
+  CHECK(ParseIsoTime("2000-03-01").value() - ParseIsoTime("2000-02-28").value() ==
+        2 * 86400.0);  // 2000 is a leap year
+  CHECK(ParseIsoTime("2024-02-29"));
+  for (const char* bad : {"2023-02-29", "2026-13-01", "2026-04-31", "2026-1-5", "05.01.2026",
+                          "2026-01-05T24:00", "2026-01-05T08:60", "2026-01-05T08", "2026-01-05x",
+                          "2026-01-05T08:00:00+2", "yesterday", ""}) {
+    INFO(bad);
+    CHECK_FALSE(ParseIsoTime(bad));
+  }
+}
+
+TEST_CASE("a synthetic campaign recovers each record's gap and the wear slope", "[campaign]") {
+  const Campaign campaign;
+  const CampaignManifest manifest =
+      LoadCampaignManifest(campaign.manifest_path, /*config=*/"", /*time_column=*/"");
+  REQUIRE(manifest.rows.size() == std::size(kStamps));
+  REQUIRE(manifest.fits.size() == std::size(kStamps));
+  const CampaignResult result = RunCampaign(campaign.scene, manifest, CampaignOptions{});
+  CHECK(result.AllOk());
+  const int gap = ParameterIndex(result, "spindle.backlash");
+  const int damping = ParameterIndex(result, "spindle.damping");
+  REQUIRE(gap >= 0);
+  REQUIRE(damping >= 0);
+  CHECK(result.parameters[gap].unit == "rad");
+  CHECK(result.parameters[gap].link == "spindle");
+  CHECK(result.parameters[ParameterIndex(result, "bite_time")].link.empty());
+  for (size_t r = 0; r < result.rows.size(); ++r) {
+    const auto& row = result.rows[r];
+    INFO("row " << r << ": " << row.verdict << " " << row.reason);
+    REQUIRE(row.verdict == "ok");
+    CHECK_THAT(FitDay(manifest, row.fit), Catch::Matchers::WithinAbs(kStamps[r].day, 1e-9));
+    CHECK(std::abs(row.value[gap] - TrueGap(kStamps[r].day)) <= kValueSe * row.standard_error[gap]);
+    CHECK(std::abs(row.value[damping] - kTrueDamping) <= kValueSe * row.standard_error[damping]);
+  }
+  // One trend per link parameter (damping and gap) of the one stand.
+  REQUIRE(result.trends.size() == 2);
+  const TrendLine& wear = result.trends[gap < damping ? 0 : 1];
+  REQUIRE(wear.parameter == "spindle.backlash");
+  REQUIRE(wear.defined);
+  CHECK(wear.points == 6);
+  CHECK(wear.slope_se > 0.0);
+  CHECK(std::abs(wear.slope_per_day - kWearPerDay_rad) <= kSlopeSe * wear.slope_se);
+  CHECK(std::abs(wear.value_at_epoch - kGapAtDay0_rad) <= kSlopeSe * wear.value_at_epoch_se);
+  // The damping does not wear: its slope is zero within its error.
+  const TrendLine& flat = result.trends[gap < damping ? 1 : 0];
+  CHECK(std::abs(flat.slope_per_day) <= kSlopeSe * flat.slope_se);
+}
+
+TEST_CASE("a campaign gives the same table and trends on 1 and 2 threads", "[campaign]") {
+  const Campaign campaign;
+  const CampaignManifest manifest = LoadCampaignManifest(campaign.manifest_path, "", "");
+  CampaignOptions options;
+  const CampaignResult one = RunCampaign(campaign.scene, manifest, options);
+  options.threads = 2;
+  const CampaignResult two = RunCampaign(campaign.scene, manifest, options);
+  CHECK(CampaignCsv(manifest, one) == CampaignCsv(manifest, two));
+  CHECK(CampaignTrendCsv(manifest, one) == CampaignTrendCsv(manifest, two));
+  REQUIRE(one.trends.size() == two.trends.size());
+  for (size_t t = 0; t < one.trends.size(); ++t) {
+    CHECK(one.trends[t].slope_per_day == two.trends[t].slope_per_day);
+    CHECK(one.trends[t].slope_se == two.trends[t].slope_se);
+  }
+}
+
+TEST_CASE("rows of one group are one fit: a shared gap, a bite time per record", "[campaign]") {
+  const Campaign campaign;
+  // A second bite of day 20 (other noise) grouped with the first one, half a day later.
+  WriteText(campaign.dir / "records/r2b.csv", RecordCsv(campaign.scene, 20.0, 200));
+  WriteText(campaign.manifest_path,
+            "file,time,stand,group\n"
+            "records/r0.csv,2026-01-05,F1,\n"
+            "records/r2.csv,2026-01-25,F1,week4\n"
+            "records/r2b.csv,2026-01-25T12:00,F1,week4\n");
+  const CampaignManifest manifest = LoadCampaignManifest(campaign.manifest_path, "", "");
+  REQUIRE(manifest.fits.size() == 2);
+  CHECK(manifest.fits[1] == std::vector<int>{1, 2});
+  CHECK_THAT(FitDay(manifest, 1), Catch::Matchers::WithinAbs(20.25, 1e-9));
+  const CampaignResult result = RunCampaign(campaign.scene, manifest, CampaignOptions{});
+  const int gap = ParameterIndex(result, "spindle.backlash");
+  const int bite = ParameterIndex(result, "bite_time");
+  REQUIRE(gap >= 0);
+  REQUIRE(bite >= 0);
+  const auto& a = result.rows[1];
+  const auto& b = result.rows[2];
+  INFO(a.verdict << ": " << a.reason);
+  CHECK(a.fit == b.fit);
+  REQUIRE(a.verdict == "ok");
+  CHECK(b.verdict == "ok");
+  CHECK(std::abs(a.value[gap] - TrueGap(20.0)) <= kValueSe * a.standard_error[gap]);
+  CHECK(a.value[gap] == b.value[gap]);
+  CHECK(a.value[bite] != b.value[bite]);  // each record's own bite time
+  CHECK(std::isfinite(a.value[bite]));
+}
+
+TEST_CASE("a missing and a corrupt record are reported in their rows, and the campaign exits 3",
+          "[campaign]") {
+  const Campaign campaign("records/gone.csv,2026-03-01,F1\nrecords/bad.csv,2026-03-02,F1\n");
+  WriteText(campaign.dir / "records/bad.csv", "time,spindle\n0,1\n0.001,abc\n");
+  const auto out = campaign.dir / "out";
+  std::filesystem::create_directories(out);
+  const auto result = RunMillkit(campaign.Cli(
+      "--out '" + (out / "campaign.csv").string() + "' --trend '" + (out / "trend.csv").string() +
+      "' --plot '" + (out / "trend").string() + "' --threads 2"));
+  INFO(result.stderr_text);
+  REQUIRE(result.exit_code == 3);
+  CHECK_THAT(result.stderr_text, Contains("line 8 (records/gone.csv): failed"));
+  CHECK_THAT(result.stderr_text, Contains("2 of 8 records not ok"));
+  const std::string table = ReadText(out / "campaign.csv");
+  CHECK_THAT(table, Contains("\"records/gone.csv\",\"2026-03-01\",\"F1\",\"\",failed,\""));
+  CHECK_THAT(table, Contains("gone.csv: no such file"));
+  CHECK_THAT(table, Contains("\"records/bad.csv\",\"2026-03-02\",\"F1\",\"\",failed,\""));
+  CHECK_THAT(table, Contains("bad.csv: line 3, column 'spindle': 'abc' is not a finite number"));
+  CHECK_THAT(table, Contains("\"spindle.backlash [rad]\",\"spindle.backlash.se [rad]\""));
+  int ok_rows = 0;
+  for (auto at = table.find(",ok,"); at != std::string::npos; at = table.find(",ok,", at + 1)) {
+    ++ok_rows;
+  }
+  CHECK(ok_rows == 6);
+  CHECK_THAT(ReadText(out / "trend.csv"), Contains("\"F1\",spindle.backlash,\"rad\",6,"));
+  const std::string svg = ReadText(out / "trend.spindle.svg");
+  CHECK_THAT(svg, Contains("class=\"error-bars\""));
+  CHECK_THAT(svg, Contains("days since 2026-01-05"));
+  CHECK_THAT(svg, Contains("F1, spindle.backlash: trend"));
+  CHECK(campaign.dir.EntryCount() == 4);  // scene, manifest, records, out: no temporary left
+}
+
+TEST_CASE("a bad manifest exits 2 naming its line and column, and writes nothing", "[campaign]") {
+  struct Case {
+    const char* what;
+    std::string manifest;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {"no stand column", "file,time\nrecords/r0.csv,2026-01-05\n",
+       "manifest.csv: line 1: the header has no column 'stand'"},
+      {"a date that does not exist",
+       "file,time,stand\nrecords/r0.csv,2026-01-05,F1\n"
+       "records/r1.csv,2026-02-30,F1\n",
+       "manifest.csv: line 3, column 'time': '2026-02-30' is not an ISO 8601 date"},
+      {"an empty file cell", "file,time,stand\n# a comment line\n,2026-01-05,F1\n",
+       "manifest.csv: line 3, column 'file': empty"},
+      {"a stand that is not a name", "file,time,stand\nrecords/r0.csv,2026-01-05,F1/upper\n",
+       "manifest.csv: line 2, column 'stand': 'F1/upper' is not a stand name"},
+      {"an unknown column", "file,time,stand,remark\nrecords/r0.csv,2026-01-05,F1,new\n",
+       "manifest.csv: line 1, column 'remark': unknown column"},
+      {"a config that does not exist",
+       "file,time,stand,config\nrecords/r0.csv,2026-01-05,F1,"
+       "nofit.toml\n",
+       "manifest.csv: line 2, column 'config'"},
+  };
+  const Campaign campaign;
+  for (const auto& c : cases) {
+    INFO(c.what);
+    WriteText(campaign.manifest_path, c.manifest);
+    const auto out = campaign.dir / "out";
+    std::filesystem::create_directories(out);
+    const auto result = RunMillkit(campaign.Cli("--out '" + (out / "campaign.csv").string() +
+                                                "' --trend '" + (out / "trend.csv").string() +
+                                                "' --plot '" + (out / "trend").string() + "'"));
+    CHECK(result.exit_code == 2);
+    CHECK_THAT(result.stderr_text, Contains(c.message));
+    CHECK(std::filesystem::is_empty(out));
+  }
+}
+
+TEST_CASE("identify takes --data or --campaign, not both, and lists --campaign in its help",
+          "[campaign]") {
+  const Campaign campaign;
+  const auto both =
+      RunMillkit(campaign.Cli("--data '" + (campaign.dir / "records/r0.csv").string() +
+                              "' --out '" + (campaign.dir / "c.csv").string() + "'"));
+  CHECK(both.exit_code == 2);
+  CHECK_THAT(both.stderr_text, Contains("give either --data"));
+  CHECK_FALSE(std::filesystem::exists(campaign.dir / "c.csv"));
+  const auto help = RunMillkit("identify --help");
+  CHECK(help.exit_code == 0);
+  CHECK_THAT(help.stdout_text, Contains("--campaign"));
+  CHECK_THAT(help.stdout_text, Contains("--trend"));
+}
+
+TEST_CASE("an output that is the manifest or a record is refused before any fit", "[campaign]") {
+  const Campaign campaign;
+  const auto onto_record =
+      RunMillkit(campaign.Cli("--out '" + (campaign.dir / "records/r3.csv").string() + "'"));
+  CHECK(onto_record.exit_code == 2);
+  CHECK_THAT(onto_record.stderr_text, Contains("an output never replaces an input"));
+  const auto onto_manifest = RunMillkit(campaign.Cli("--out '" + campaign.manifest_path + "'"));
+  CHECK(onto_manifest.exit_code == 2);
+  CHECK_THAT(ReadText(campaign.manifest_path), Contains("file,time,stand"));
+}
+
+}  // namespace millkit::identify
