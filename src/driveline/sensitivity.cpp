@@ -102,7 +102,7 @@ struct ParameterModels {
 
 // A non-zero entry of a sparse matrix (M̃ follows the line's tree: a few entries per row).
 struct Entry {
-  int row, col;
+  Eigen::Index row, col;
   double value;
 };
 
@@ -141,7 +141,7 @@ class SensitivityPass final : public HybridObserver {
         d_inverse_(scale.cwiseInverse()),
         h_(step),
         n_(model.augmented_size()),
-        p_(static_cast<int>(parameters_.size())),
+        p_(static_cast<Eigen::Index>(parameters_.size())),
         given_state_(given_state) {
     const int links = static_cast<int>(model.scene().links.size());
     out_.assign(p_, Eigen::MatrixXd::Zero(samples, links));
@@ -252,7 +252,7 @@ class SensitivityPass final : public HybridObserver {
   void Recorded(int k, const Phases& phases) override {
     if (!unavailable_.empty()) return;
     PhaseSet& data = Data(phases);
-    const int links = static_cast<int>(data.torque.rows());
+    const Eigen::Index links = data.torque.rows();
     if (!data.has_torque_p) {
       data.torque_p.resize(links * p_, n_);
       for (int j = 0; j < p_; ++j) {
@@ -268,7 +268,7 @@ class SensitivityPass final : public HybridObserver {
     stacked_scratch_.noalias() = data.torque_p * z_;
     for (int j = 0; j < p_; ++j) {
       const double inverse_magnitude = 1.0 / parameters_[j].magnitude;
-      for (int l = 0; l < links; ++l) {
+      for (Eigen::Index l = 0; l < links; ++l) {
         out_[j](k, l) = torque_scratch_(l, j) * inverse_magnitude + stacked_scratch_[j * links + l];
       }
     }
@@ -406,7 +406,7 @@ class SensitivityPass final : public HybridObserver {
   std::vector<ParameterModels> parameters_;
   Eigen::VectorXd d_, d_inverse_;
   double h_;
-  int n_, p_;
+  Eigen::Index n_, p_;  // augmented size, parameters
   bool given_state_;
   std::vector<Eigen::MatrixXd> surfaces_p_;  // G_j (unscaled)
   std::map<Phases, PhaseSet> cache_;
