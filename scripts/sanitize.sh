@@ -16,7 +16,8 @@
 # the other tests; the plain build runs them. Likewise the identification fits beyond five
 # representative ones (verdict ok, verdict not_converged, a gap not identifiable, a COMTRADE and
 # a MAT record): each takes 20 to 300 s under the sanitizers (measured on a clean-clone run) and
-# runs the same fit code on another record or option. And the campaign's repeat on 2 threads.
+# runs the same fit code on another record or option. And the campaign's repeat on 2 threads, and
+# the sensitivities' 200 random-line points.
 # Usage: scripts/sanitize.sh [BUILD_DIR]   (default: build-asan)
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
@@ -42,4 +43,7 @@ slow+="|identify --threads 2 writes the same JSON|Over 20 noisy records"
 # The campaign run twice to compare 1 and 2 threads: 27 s under the sanitizers; the other campaign
 # tests run the same fits once (35 s).
 slow+="|a campaign gives the same table and trends on 1 and 2 threads"
+# The sensitivities at 200 random-line points: 59 s under the sanitizers; the bundled scenes'
+# 36 points (57 s) run the same code under every contact law and parameter kind.
+slow+="|Sensitivities agree with central differences at 200 points"
 ctest --output-on-failure -j "$(nproc)" -LE package -E "$slow"
