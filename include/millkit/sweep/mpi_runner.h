@@ -14,6 +14,8 @@
 // before any data moves; if any rank failed, every rank throws.
 #pragma once
 
+#include <exception>
+#include <string>
 #include <vector>
 
 #include "millkit/sweep/sweep_runner.h"
@@ -38,6 +40,14 @@ class MpiSession {
   int size_ = 1;
   bool initialised_ = false;
 };
+
+// Collective (every rank calls it): one byte string per rank gathered on rank 0, indexed by rank;
+// other ranks get an empty vector. `error` is this rank's failure before the call (null: none):
+// every rank first learns whether any rank failed, then the failing rank rethrows its own error
+// and the others throw std::runtime_error naming `activity`, so no rank waits for data that never
+// comes. A single-process session returns {bytes} (or rethrows `error`).
+std::vector<std::string> GatherBytes(const MpiSession& session, const std::string& bytes,
+                                     std::exception_ptr error, const std::string& activity);
 
 // RunCases over all ranks. On rank 0: every case's result in case order, and `summary` for the
 // whole run (cases, failures, this rank's threads, wall time to the gathered result). On other
