@@ -197,6 +197,7 @@ void RunCampaign(const IdentifyArgs& args) {
 
   if (!args.merge.empty()) {
     std::vector<std::pair<std::string, std::string>> parts;
+    parts.reserve(args.merge.size());
     for (const auto& path : args.merge) {
       if (!std::filesystem::is_regular_file(path)) {
         throw InputError("option --merge: '" + path + "' is not a file");
@@ -265,6 +266,7 @@ void RunCampaign(const IdentifyArgs& args) {
     const std::vector<std::string> shares = sweep::GatherBytes(mpi, part, error, "the campaign");
     if (!mpi.root()) return;
     std::vector<std::pair<std::string, std::string>> parts;
+    parts.reserve(shares.size());
     for (int r = 0; r < mpi.size(); ++r) {
       parts.emplace_back("MPI rank " + std::to_string(r), shares[r]);
     }
