@@ -363,7 +363,7 @@ constexpr const char* kGoneRow = "records/gone.csv,2026-03-01,F1\n";
 
 }  // namespace
 
-TEST_CASE("--shard 1/2 and 2/2 merged write the same table, trend and plots as one run",
+TEST_CASE("shards 1/2 and 2/2 merged write the same table, trend and plots as one run",
           "[campaign][shard]") {
   const Campaign campaign(kGoneRow);
   const Outputs serial = MakeOutputs(campaign, "serial");

@@ -4,9 +4,10 @@
 // rank on its own thread pool; the results travel as raw bytes, so the rows are bitwise those of
 // a serial run.
 //
-// MPI is optional at build time (CMake option MILLKIT_WITH_MPI, OpenMPI from Debian). MPI is
-// initialised only when the program was started by mpirun (OMPI_COMM_WORLD_SIZE or PMI_SIZE in the
-// environment); otherwise everything runs in this process. A program built
+// MPI is built in when CMake finds it (option MILLKIT_WITH_MPI: AUTO by default, ON, OFF; OpenMPI
+// from Debian). Campaigns (`identify --campaign`) share their fits out the same way through
+// GatherBytes. MPI is initialised only when the program was started by mpirun (OMPI_COMM_WORLD_SIZE
+// or PMI_SIZE in the environment); otherwise everything runs in this process. A program built
 // without MPI but started by mpirun with more than one rank refuses to run (InputError), rather
 // than have every rank run every case.
 //
