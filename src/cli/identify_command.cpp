@@ -143,17 +143,21 @@ std::string ThreadsText(int threads) {
   return std::to_string(threads) + (threads == 1 ? " thread" : " threads");
 }
 
-// `--campaign`: on every MPI rank (or alone), `--shard k/N` (a part file) or `--merge` (no fits).
-void RunCampaign(const IdentifyArgs& args) {
-  const auto started = std::chrono::steady_clock::now();
-  const sweep::MpiSession mpi;  // every rank parses and checks the same inputs
+// What every rank reads and checks before the fits.
+struct CampaignInputs {
+  std::optional<identify::CampaignShard> shard;
+  driveline::Scene scene;
+  identify::CampaignManifest manifest;
+};
+
+CampaignInputs ReadCampaignInputs(const IdentifyArgs& args, const sweep::MpiSession& mpi) {
   if (!args.trace.empty()) {
     throw InputError("option --trace: not available with --campaign (fit one record with --data)");
   }
-  std::optional<identify::CampaignShard> shard;
+  CampaignInputs in;
   if (!args.shard.empty()) {
-    shard = identify::ParseCampaignShard(args.shard);
-    if (!shard) {
+    in.shard = identify::ParseCampaignShard(args.shard);
+    if (!in.shard) {
       throw InputError("option --shard: '" + args.shard +
                        "' is not k/N with whole numbers 1 <= k <= N (k counts from 1, as "
                        "SLURM_ARRAY_TASK_ID of --array=1-N)");
@@ -169,31 +173,52 @@ void RunCampaign(const IdentifyArgs& args) {
       }
     }
   }
-  if ((shard || !args.merge.empty()) && mpi.size() > 1) {
-    throw InputError(std::string("option ") + (shard ? "--shard" : "--merge") +
+  if ((in.shard || !args.merge.empty()) && mpi.size() > 1) {
+    throw InputError(std::string("option ") + (in.shard ? "--shard" : "--merge") +
                      ": not under mpirun with several ranks (the ranks share the fits out "
                      "themselves)");
   }
   identify::CampaignOptions options;
   options.threads = args.threads;
   options.Validate();
-  const driveline::Scene scene = driveline::LoadScene(args.scene);
-  const identify::CampaignManifest manifest =
-      identify::LoadCampaignManifest(args.campaign, args.config, args.time_column);
+  in.scene = driveline::LoadScene(args.scene);
+  in.manifest = identify::LoadCampaignManifest(args.campaign, args.config, args.time_column);
   // Every link's plot path is checked before the work; only links with a fitted parameter are
   // written.
-  std::vector<std::string> inputs = manifest.Inputs();
+  std::vector<std::string> inputs = in.manifest.Inputs();
   inputs.push_back(args.scene);
   inputs.push_back(args.config);
   inputs.insert(inputs.end(), args.merge.begin(), args.merge.end());
   std::vector<std::pair<std::string, std::string>> outputs = {{"--out", args.out},
                                                               {"--trend", args.trend}};
   if (!args.plot.empty()) {
-    for (const auto& link : scene.links) {
+    for (const auto& link : in.scene.links) {
       outputs.emplace_back("--plot", TrendPlotPath(args.plot, link.name));
     }
   }
   CheckOutputPaths(outputs, inputs);
+  return in;
+}
+
+// `--campaign`: on every MPI rank (or alone), `--shard k/N` (a part file) or `--merge` (no fits).
+void RunCampaign(const IdentifyArgs& args) {
+  const auto started = std::chrono::steady_clock::now();
+  const sweep::MpiSession mpi;  // every rank reads and checks the same inputs
+  // A rank whose inputs fail (a file its node does not see) must not leave the others waiting in
+  // the gather: every rank learns of it here and stops.
+  std::optional<CampaignInputs> in;
+  std::exception_ptr error;
+  try {
+    in.emplace(ReadCampaignInputs(args, mpi));
+  } catch (...) {
+    error = std::current_exception();
+  }
+  sweep::ThrowIfAnyRankFailed(mpi, error, "reading the campaign's inputs");
+  const std::optional<identify::CampaignShard>& shard = in->shard;
+  const driveline::Scene& scene = in->scene;
+  const identify::CampaignManifest& manifest = in->manifest;
+  identify::CampaignOptions options;
+  options.threads = args.threads;
 
   if (!args.merge.empty()) {
     std::vector<std::pair<std::string, std::string>> parts;
@@ -256,14 +281,14 @@ void RunCampaign(const IdentifyArgs& args) {
     outcomes = identify::RunCampaignFits(scene, manifest, fits, options);
   } else {
     std::string part;
-    std::exception_ptr error;
     try {
       part = identify::CampaignPartCsv(manifest, mine, fits,
                                        identify::RunCampaignFits(scene, manifest, fits, options));
     } catch (...) {
       error = std::current_exception();
     }
-    const std::vector<std::string> shares = sweep::GatherBytes(mpi, part, error, "the campaign");
+    const std::vector<std::string> shares =
+        sweep::GatherBytes(mpi, part, error, "during the campaign");
     if (!mpi.root()) return;
     std::vector<std::pair<std::string, std::string>> parts;
     parts.reserve(shares.size());

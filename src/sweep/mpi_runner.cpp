@@ -115,6 +115,22 @@ MpiSession::~MpiSession() {
 #endif
 }
 
+void ThrowIfAnyRankFailed(const MpiSession& session, std::exception_ptr error,
+                          const std::string& activity) {
+  if (session.size() > 1) {
+#if MILLKIT_WITH_MPI
+    int failed_here = error ? 1 : 0, failed_anywhere = 0;
+    MPI_Allreduce(&failed_here, &failed_anywhere, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    if (!error && failed_anywhere) {
+      throw std::runtime_error("another MPI rank failed " + activity + " (see its own message)");
+    }
+#else
+    throw std::logic_error("ThrowIfAnyRankFailed: a multi-rank session without MPI");
+#endif
+  }
+  if (error) std::rethrow_exception(error);
+}
+
 std::vector<std::string> GatherBytes(const MpiSession& session, const std::string& bytes,
                                      std::exception_ptr error, const std::string& activity) {
   if (session.size() == 1) {
@@ -128,10 +144,7 @@ std::vector<std::string> GatherBytes(const MpiSession& session, const std::strin
         std::runtime_error("rank " + std::to_string(rank) + ": results exceed 2 GiB"));
   }
   // Everyone learns whether anyone failed before any data moves.
-  int failed_here = error ? 1 : 0, failed_anywhere = 0;
-  MPI_Allreduce(&failed_here, &failed_anywhere, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
-  if (error) std::rethrow_exception(error);
-  if (failed_anywhere) throw std::runtime_error("another MPI rank failed during " + activity);
+  ThrowIfAnyRankFailed(session, error, activity);
 
   const int count = static_cast<int>(bytes.size());
   std::vector<int> counts(session.root() ? size : 0), offsets(counts.size());
@@ -149,7 +162,7 @@ std::vector<std::string> GatherBytes(const MpiSession& session, const std::strin
     if (!too_large) all.resize(static_cast<size_t>(total));
   }
   MPI_Bcast(&too_large, 1, MPI_INT, 0, MPI_COMM_WORLD);
-  if (too_large) throw std::runtime_error("gathered results of " + activity + " exceed 2 GiB");
+  if (too_large) throw std::runtime_error("gathered results exceed 2 GiB (" + activity + ")");
   MPI_Gatherv(bytes.data(), count, MPI_BYTE, all.data(), counts.data(), offsets.data(), MPI_BYTE, 0,
               MPI_COMM_WORLD);
   if (!session.root()) return {};
@@ -187,7 +200,7 @@ std::vector<CaseResult> RunCasesDistributed(const MpiSession& session, const Cas
   } catch (...) {
     error = std::current_exception();
   }
-  const std::vector<std::string> parts = GatherBytes(session, packed, error, "the sweep");
+  const std::vector<std::string> parts = GatherBytes(session, packed, error, "during the sweep");
   int failed_cases = 0;
   MPI_Reduce(&local_summary.failed, &failed_cases, 1, MPI_INT, MPI_SUM, 0, MPI_COMM_WORLD);
   if (!session.root()) return {};

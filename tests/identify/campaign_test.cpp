@@ -490,6 +490,25 @@ TEST_CASE("mpirun -np 2 writes the same campaign table, trend and plots as a ser
   mpi.RequireSame(serial);
   CHECK_THAT(ReadText(campaign.dir / "stdout"), Contains("2 MPI ranks"));
 }
+
+TEST_CASE("a rank whose inputs fail stops every rank: no hang, no output",
+          "[campaign][cli][mpi][bad_input]") {
+  // Two programs in one job (MPMD): rank 1 gets a --threads it refuses, rank 0 good inputs. Rank 0
+  // must not wait for rank 1 in the gather; `timeout` turns a hang into exit 124.
+  const Campaign campaign;
+  const Outputs outputs = MakeOutputs(campaign, "out");
+  const std::string root = geteuid() == 0 ? " --allow-run-as-root" : "";
+  const std::string program = " '" MILLKIT_BINARY "' " + campaign.Cli(outputs.Options());
+  const int code = Shell(campaign.dir, "timeout 120 mpirun --oversubscribe" + root + " -np 1" +
+                                           program + " : -np 1" + program + " --threads 0");
+  const std::string stderr_text = ReadText(campaign.dir / "stderr");
+  INFO(stderr_text);
+  CHECK(code != 0);
+  CHECK(code != 124);
+  CHECK_THAT(stderr_text, Contains("option --threads: must lie in [1, 256] (got 0)"));
+  CHECK_THAT(stderr_text, Contains("another MPI rank failed reading the campaign's inputs"));
+  CHECK(std::filesystem::is_empty(outputs.dir));
+}
 #else
 TEST_CASE("a millkit built without MPI refuses a campaign as several mpirun ranks",
           "[campaign][cli][mpi][bad_input]") {

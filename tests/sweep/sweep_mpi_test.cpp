@@ -41,6 +41,23 @@ TEST_CASE("mpirun -np 2 writes the same rows as a serial run", "[sweep][cli][mpi
   CHECK(ReadText(dir / "mpi.csv") == serial);
   CHECK_THAT(serial, Contains(",failed,") && Contains(",ok,"));
 }
+
+TEST_CASE("a sweep rank whose inputs fail stops every rank: no hang, no output",
+          "[sweep][cli][mpi][bad_input]") {
+  // Rank 1 (MPMD) gets a --threads it refuses; `timeout` turns a hang of rank 0 into exit 124.
+  ScratchDir dir;
+  WriteText(dir / "sweep.toml", kConfig);
+  const std::string root = geteuid() == 0 ? " --allow-run-as-root" : "";
+  const std::string program = " '" MILLKIT_BINARY "' " + SweepArguments(dir, "mpi.csv");
+  const int code = Shell(dir, "timeout 120 mpirun --oversubscribe" + root + " -np 1" + program +
+                                  " : -np 1" + program + " --threads 0");
+  const std::string stderr_text = ReadText(dir / "stderr");
+  INFO(stderr_text);
+  CHECK(code != 0);
+  CHECK(code != 124);
+  CHECK_THAT(stderr_text, Contains("another MPI rank failed reading the sweep's inputs"));
+  CHECK_FALSE(std::filesystem::exists(dir / "mpi.csv"));
+}
 #else
 TEST_CASE("a millkit built without MPI refuses to run as several mpirun ranks",
           "[sweep][cli][mpi][bad_input]") {

@@ -42,6 +42,14 @@ class MpiSession {
   bool initialised_ = false;
 };
 
+// Collective (every rank calls it): every rank learns whether any rank failed (`error` is this
+// rank's failure, null for none). The failing rank rethrows its own error, the others throw
+// std::runtime_error naming `activity`; so a rank whose inputs fail (a file its node does not see)
+// does not leave the others waiting in a later collective. A single-process session rethrows
+// `error` if any.
+void ThrowIfAnyRankFailed(const MpiSession& session, std::exception_ptr error,
+                          const std::string& activity);
+
 // Collective (every rank calls it): one byte string per rank gathered on rank 0, indexed by rank;
 // other ranks get an empty vector. `error` is this rank's failure before the call (null: none):
 // every rank first learns whether any rank failed, then the failing rank rethrows its own error
