@@ -115,7 +115,7 @@ MpiSession::~MpiSession() {
 #endif
 }
 
-void ThrowIfAnyRankFailed(const MpiSession& session, std::exception_ptr error,
+void ThrowIfAnyRankFailed(const MpiSession& session, const std::exception_ptr& error,
                           const std::string& activity) {
   if (session.size() > 1) {
 #if MILLKIT_WITH_MPI

@@ -47,7 +47,7 @@ class MpiSession {
 // std::runtime_error naming `activity`; so a rank whose inputs fail (a file its node does not see)
 // does not leave the others waiting in a later collective. A single-process session rethrows
 // `error` if any.
-void ThrowIfAnyRankFailed(const MpiSession& session, std::exception_ptr error,
+void ThrowIfAnyRankFailed(const MpiSession& session, const std::exception_ptr& error,
                           const std::string& activity);
 
 // Collective (every rank calls it): one byte string per rank gathered on rank 0, indexed by rank;
