@@ -125,6 +125,7 @@ void ThrowIfAnyRankFailed(const MpiSession& session, const std::exception_ptr& e
       throw std::runtime_error("another MPI rank failed " + activity + " (see its own message)");
     }
 #else
+    (void)activity;
     throw std::logic_error("ThrowIfAnyRankFailed: a multi-rank session without MPI");
 #endif
   }
