@@ -3,13 +3,16 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <map>
 #include <mutex>
 #include <set>
+#include <unordered_map>
 
+#include "io/invariant.h"
 #include "millkit/identify/fit_config.h"
 #include "millkit/identify/oscillogram.h"
 #include "millkit/io/csv.h"
@@ -96,19 +99,7 @@ std::string Join(const std::vector<std::string>& parts) {
   return out;
 }
 
-// What one fit (a row or a group) gives each of its rows.
-struct FitOutcome {
-  std::string verdict = "failed";
-  std::string reason;
-  // Per row of the fit: (scene parameter name, unit, value, standard error or NaN).
-  struct Estimate {
-    std::string name;
-    std::string unit;
-    double value = kNaN;
-    double standard_error = kNaN;
-  };
-  std::vector<std::vector<Estimate>> rows;
-};
+using FitOutcome = CampaignFitOutcome;
 
 // Files are read one fit at a time: libmatio is not documented to be thread-safe, and reading
 // is cheap beside a fit.
@@ -200,6 +191,102 @@ TrendLine FitTrend(const std::vector<double>& days, const std::vector<double>& v
   return trend;
 }
 
+// The part file's columns (CampaignPartCsv).
+const std::vector<std::string> kPartColumns = {
+    "shard",   "fit",    "line",      "file", "time",  "stand",         "group",
+    "verdict", "reason", "parameter", "unit", "value", "standard_error"};
+
+// A number of a part file: shortest round-trip when finite, so it reads back bit for bit.
+void AppendExactCell(double value, std::string* text) {
+  *text += ',';
+  if (std::isnan(value)) {
+    *text += "nan";
+  } else if (std::isinf(value)) {
+    *text += value > 0 ? "inf" : "-inf";
+  } else {
+    AppendNumber(value, text);
+  }
+}
+
+std::optional<double> ParseExactNumber(const std::string& text) {
+  if (text == "nan") return kNaN;
+  if (text == "inf") return std::numeric_limits<double>::infinity();
+  if (text == "-inf") return -std::numeric_limits<double>::infinity();
+  double value = 0.0;
+  const char* end = text.data() + text.size();
+  const auto [at, error] = std::from_chars(text.data(), end, value);
+  if (text.empty() || error != std::errc() || at != end || !std::isfinite(value)) {
+    return std::nullopt;
+  }
+  return value;
+}
+
+std::optional<int> ParseIndex(const std::string& text) {
+  int value = 0;
+  const char* end = text.data() + text.size();
+  const auto [at, error] = std::from_chars(text.data(), end, value);
+  if (text.empty() || error != std::errc() || at != end || value < 0) return std::nullopt;
+  return value;
+}
+
+// The records of a part file: cells split at ',' outside double quotes ("" is a quote), records
+// at '\n' outside quotes (a '\r' before it dropped); blank and '#' lines skipped. Cells are kept
+// exactly, not trimmed: a part is read back only from what CampaignPartCsv wrote.
+struct PartRecord {
+  int line = 0;
+  std::vector<std::string> cells;
+};
+
+std::vector<PartRecord> SplitPart(const std::string& text, const std::string& source) {
+  std::vector<PartRecord> records;
+  size_t at = 0;
+  int line = 1;
+  while (at < text.size()) {
+    if (text[at] == '\n' || text[at] == '#' ||
+        (text[at] == '\r' && at + 1 < text.size() && text[at + 1] == '\n')) {
+      const size_t end = text.find('\n', at);
+      at = end == std::string::npos ? text.size() : end + 1;
+      ++line;
+      continue;
+    }
+    PartRecord record;
+    record.line = line;
+    std::string cell;
+    bool quoted = false;
+    for (; at < text.size(); ++at) {
+      const char c = text[at];
+      if (quoted) {
+        if (c == '"' && at + 1 < text.size() && text[at + 1] == '"') {
+          cell += '"';
+          ++at;
+        } else if (c == '"') {
+          quoted = false;
+        } else {
+          if (c == '\n') ++line;
+          cell += c;
+        }
+      } else if (c == '"') {
+        quoted = true;
+      } else if (c == ',') {
+        record.cells.push_back(std::move(cell));
+        cell.clear();
+      } else if (c == '\n') {
+        break;
+      } else if (c != '\r') {
+        cell += c;
+      }
+    }
+    if (quoted) {
+      throw InputError(source + ": line " + std::to_string(record.line) +
+                       ": a quote that is never closed");
+    }
+    record.cells.push_back(std::move(cell));
+    records.push_back(std::move(record));
+    ++at;
+    ++line;
+  }
+  return records;
+}
 }  // namespace
 
 std::optional<double> ParseIsoTime(const std::string& text) {
@@ -404,25 +491,44 @@ double FitDay(const CampaignManifest& manifest, int fit) {
   return sum / static_cast<double>(manifest.fits[fit].size()) / kSecondsPerDay;
 }
 
-CampaignResult RunCampaign(const driveline::Scene& scene, const CampaignManifest& manifest,
-                           const CampaignOptions& options) {
+std::vector<CampaignFitOutcome> RunCampaignFits(const driveline::Scene& scene,
+                                                const CampaignManifest& manifest,
+                                                const std::vector<int>& fits,
+                                                const CampaignOptions& options) {
   options.Validate();
-  const auto clock_start = std::chrono::steady_clock::now();
   FitOptions fit_options = options.fit;
   fit_options.threads = 1;
   fit_options.progress = nullptr;
-  const int fit_count = static_cast<int>(manifest.fits.size());
+  const int fit_count = static_cast<int>(fits.size());
   std::vector<FitOutcome> outcomes(fit_count);
   std::mutex progress_mutex;
   int done = 0;
-  numerics::ParallelFor(fit_count, options.threads, [&](int f, int /*worker*/) {
-    outcomes[f] = RunOneFit(scene, manifest, manifest.fits[f], fit_options);
+  numerics::ParallelFor(fit_count, options.threads, [&](int k, int /*worker*/) {
+    outcomes[k] = RunOneFit(scene, manifest, manifest.fits.at(fits[k]), fit_options);
     if (options.progress) {
       const std::lock_guard lock(progress_mutex);
       options.progress(++done, fit_count);
     }
   });
+  return outcomes;
+}
 
+CampaignResult RunCampaign(const driveline::Scene& scene, const CampaignManifest& manifest,
+                           const CampaignOptions& options) {
+  const auto clock_start = std::chrono::steady_clock::now();
+  std::vector<int> all(manifest.fits.size());
+  for (size_t f = 0; f < all.size(); ++f) all[f] = static_cast<int>(f);
+  CampaignResult result =
+      AssembleCampaign(scene, manifest, RunCampaignFits(scene, manifest, all, options));
+  result.wall_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  return result;
+}
+
+CampaignResult AssembleCampaign(const driveline::Scene& scene, const CampaignManifest& manifest,
+                                const std::vector<CampaignFitOutcome>& outcomes) {
+  const int fit_count = static_cast<int>(manifest.fits.size());
+  MILLKIT_CHECK(outcomes.size() == manifest.fits.size(), "one outcome per fit of the manifest");
   CampaignResult result;
   result.rows.resize(manifest.rows.size());
   std::map<std::string, int> column;
@@ -486,8 +592,6 @@ CampaignResult RunCampaign(const driveline::Scene& scene, const CampaignManifest
       result.trends.push_back(trend);
     }
   }
-  result.wall_time_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return result;
 }
 
@@ -616,6 +720,203 @@ std::string CampaignPlotSvg(const CampaignManifest& manifest, const CampaignResu
                        : "no trend (" + std::to_string(trend.points) + " ok fits)"));
   }
   return RenderSvgPlot(panels, options);
+}
+
+std::vector<int> CampaignShard::Fits(const CampaignManifest& manifest) const {
+  std::vector<int> fits;
+  for (int f = index - 1; f < static_cast<int>(manifest.fits.size()); f += count) {
+    fits.push_back(f);
+  }
+  return fits;
+}
+
+std::optional<CampaignShard> ParseCampaignShard(const std::string& text) {
+  const auto slash = text.find('/');
+  if (slash == std::string::npos) return std::nullopt;
+  const auto is_digits = [](const std::string& part) {
+    return !part.empty() && part.size() <= 6 &&
+           std::all_of(part.begin(), part.end(), [](char c) { return c >= '0' && c <= '9'; });
+  };
+  const std::string k = text.substr(0, slash), n = text.substr(slash + 1);
+  if (!is_digits(k) || !is_digits(n)) return std::nullopt;
+  CampaignShard shard{std::stoi(k), std::stoi(n)};
+  if (shard.count < 1 || shard.index < 1 || shard.index > shard.count) return std::nullopt;
+  return shard;
+}
+
+std::string CampaignPartCsv(const CampaignManifest& manifest, const CampaignShard& shard,
+                            const std::vector<int>& fits,
+                            const std::vector<CampaignFitOutcome>& outcomes) {
+  MILLKIT_CHECK(fits.size() == outcomes.size(), "one outcome per fit of the part");
+  const std::string shard_text = std::to_string(shard.index) + "/" + std::to_string(shard.count);
+  std::string text = "# millkit identify campaign part " + shard_text + " of " +
+                     Quote(manifest.source) + ": " + std::to_string(fits.size()) + " of " +
+                     std::to_string(manifest.fits.size()) + " fits (merge with --merge)\n";
+  for (size_t j = 0; j < kPartColumns.size(); ++j) text += (j ? "," : "") + kPartColumns[j];
+  text += '\n';
+  for (size_t k = 0; k < fits.size(); ++k) {
+    const std::vector<int>& rows = manifest.fits.at(fits[k]);
+    const CampaignFitOutcome& outcome = outcomes[k];
+    MILLKIT_CHECK(outcome.rows.size() == rows.size(), "one estimate list per row of the fit");
+    for (size_t i = 0; i < rows.size(); ++i) {
+      const CampaignRow& row = manifest.rows[rows[i]];
+      const std::string prefix = Quote(shard_text) + "," + std::to_string(fits[k]) + "," +
+                                 std::to_string(row.line) + "," + Quote(row.file) + "," +
+                                 Quote(row.time) + "," + Quote(row.stand) + "," + Quote(row.group) +
+                                 "," + Quote(outcome.verdict) + "," + Quote(outcome.reason) + ",";
+      if (outcome.rows[i].empty()) text += prefix + ",,,\n";
+      for (const auto& e : outcome.rows[i]) {
+        text += prefix + Quote(e.name) + "," + Quote(e.unit);
+        AppendExactCell(e.value, &text);
+        AppendExactCell(e.standard_error, &text);
+        text += '\n';
+      }
+    }
+  }
+  return text;
+}
+
+std::vector<CampaignFitOutcome> MergeCampaignParts(
+    const CampaignManifest& manifest,
+    const std::vector<std::pair<std::string, std::string>>& parts) {
+  const size_t fit_count = manifest.fits.size();
+  std::vector<CampaignFitOutcome> outcomes(fit_count);
+  // Where each fit came from (part index, −1: none yet) and which rows were seen.
+  std::vector<int> owner(fit_count, -1);
+  std::vector<int> owner_line(fit_count, 0);
+  std::vector<bool> row_seen(manifest.rows.size(), false);
+  std::unordered_map<int, int> row_of_line;
+  for (size_t r = 0; r < manifest.rows.size(); ++r) {
+    row_of_line[manifest.rows[r].line] = static_cast<int>(r);
+  }
+  std::vector<int> fit_of_row(manifest.rows.size(), 0);
+  for (size_t f = 0; f < fit_count; ++f) {
+    for (const int r : manifest.fits[f]) fit_of_row[r] = static_cast<int>(f);
+  }
+  int shard_count = 0;
+  std::string shard_count_source;
+  for (size_t p = 0; p < parts.size(); ++p) {
+    const std::string& source = parts[p].first;
+    const std::vector<PartRecord> records = SplitPart(parts[p].second, source);
+    if (records.empty() || records.front().cells != kPartColumns) {
+      throw InputError(source + ": line " +
+                       std::to_string(records.empty() ? 1 : records.front().line) +
+                       ": not a campaign part (written by identify --campaign --shard k/N): the "
+                       "header is not shard,fit,line,file,time,stand,group,verdict,reason,"
+                       "parameter,unit,value,standard_error");
+    }
+    // A part may have no row: a shard or rank beyond the number of fits.
+    std::optional<CampaignShard> part_shard;
+    for (size_t k = 1; k < records.size(); ++k) {
+      const PartRecord& record = records[k];
+      const auto where = [&](const std::string& column) {
+        return Where(source, record.line, column);
+      };
+      if (record.cells.size() != kPartColumns.size()) {
+        throw InputError(source + ": line " + std::to_string(record.line) + ": " +
+                         std::to_string(record.cells.size()) + " cells, the header has " +
+                         std::to_string(kPartColumns.size()));
+      }
+      const auto& c = record.cells;
+      const auto shard = ParseCampaignShard(c[0]);
+      if (!shard) throw InputError(where("shard") + ": '" + c[0] + "' is not k/N");
+      if (part_shard && (shard->index != part_shard->index || shard->count != part_shard->count)) {
+        throw InputError(where("shard") + ": '" + c[0] + "', but the part's first row says " +
+                         std::to_string(part_shard->index) + "/" +
+                         std::to_string(part_shard->count));
+      }
+      part_shard = shard;
+      if (shard_count == 0) {
+        shard_count = shard->count;
+        shard_count_source = source;
+      } else if (shard->count != shard_count) {
+        throw InputError(where("shard") + ": a part of " + std::to_string(shard->count) +
+                         " shards, but " + shard_count_source + " is one of " +
+                         std::to_string(shard_count));
+      }
+      const auto fit = ParseIndex(c[1]);
+      if (!fit || *fit >= static_cast<int>(fit_count)) {
+        throw InputError(where("fit") + ": '" + c[1] + "' is not a fit of " + manifest.source +
+                         " (0 … " + std::to_string(fit_count - 1) +
+                         "): a part of another manifest?");
+      }
+      if (*fit % shard->count != shard->index - 1) {
+        throw InputError(where("fit") + ": fit " + c[1] + " is not in shard " + c[0]);
+      }
+      const auto line = ParseIndex(c[2]);
+      const auto row_at = line ? row_of_line.find(*line) : row_of_line.end();
+      if (row_at == row_of_line.end()) {
+        throw InputError(where("line") + ": '" + c[2] + "' is not a record line of " +
+                         manifest.source + ": a part of another manifest?");
+      }
+      const int r = row_at->second;
+      const CampaignRow& row = manifest.rows[r];
+      const std::vector<int>& fit_rows = manifest.fits[*fit];
+      const auto position = std::find(fit_rows.begin(), fit_rows.end(), r);
+      if (position == fit_rows.end() || c[3] != row.file || c[4] != row.time || c[5] != row.stand ||
+          c[6] != row.group) {
+        throw InputError(source + ": line " + std::to_string(record.line) + ": fit " + c[1] +
+                         ", manifest line " + c[2] + " ('" + c[3] + "', " + c[4] + ", stand '" +
+                         c[5] + "', group '" + c[6] + "') is not that of " + manifest.source +
+                         " ('" + row.file + "', " + row.time + ", stand '" + row.stand +
+                         "', group '" + row.group + "', fit " + std::to_string(fit_of_row[r]) +
+                         "): a part of another manifest?");
+      }
+      if (owner[*fit] >= 0 && owner[*fit] != static_cast<int>(p)) {
+        throw InputError(where("fit") + ": fit " + c[1] + " (manifest line " + c[2] +
+                         ") is already in " + parts[owner[*fit]].first + " (line " +
+                         std::to_string(owner_line[*fit]) + "); each fit belongs in one part");
+      }
+      CampaignFitOutcome& outcome = outcomes[*fit];
+      if (owner[*fit] < 0) {
+        owner[*fit] = static_cast<int>(p);
+        owner_line[*fit] = record.line;
+        outcome.verdict = c[7];
+        outcome.reason = c[8];
+        outcome.rows.assign(fit_rows.size(), {});
+      } else if (c[7] != outcome.verdict || c[8] != outcome.reason) {
+        throw InputError(where("verdict") + ": fit " + c[1] + " has another verdict or reason on " +
+                         "line " + std::to_string(owner_line[*fit]));
+      }
+      row_seen[r] = true;
+      if (c[9].empty()) continue;  // a row without estimates
+      auto& estimates = outcome.rows[position - fit_rows.begin()];
+      for (const auto& e : estimates) {
+        if (e.name == c[9]) {
+          throw InputError(where("parameter") + ": '" + c[9] + "' given twice for line " + c[2]);
+        }
+      }
+      CampaignFitOutcome::Estimate e;
+      e.name = c[9];
+      e.unit = c[10];
+      const auto value = ParseExactNumber(c[11]);
+      if (!value) throw InputError(where("value") + ": '" + c[11] + "' is not a number");
+      const auto se = ParseExactNumber(c[12]);
+      if (!se) throw InputError(where("standard_error") + ": '" + c[12] + "' is not a number");
+      e.value = *value;
+      e.standard_error = *se;
+      estimates.push_back(std::move(e));
+    }
+  }
+  std::string given;
+  for (const auto& part : parts) given += (given.empty() ? "" : ", ") + part.first;
+  for (size_t f = 0; f < fit_count; ++f) {
+    const CampaignRow& first = manifest.rows[manifest.fits[f].front()];
+    if (owner[f] < 0) {
+      throw InputError(manifest.source + ": line " + std::to_string(first.line) + " ('" +
+                       first.file + "', fit " + std::to_string(f) + ") is in no part (given: " +
+                       given + "); every shard 1/N … N/N must be merged");
+    }
+    for (const int r : manifest.fits[f]) {
+      if (!row_seen[r]) {
+        throw InputError(parts[owner[f]].first + ": fit " + std::to_string(f) +
+                         " lacks its row of manifest line " +
+                         std::to_string(manifest.rows[r].line) + " ('" + manifest.rows[r].file +
+                         "')");
+      }
+    }
+  }
+  return outcomes;
 }
 
 }  // namespace millkit::identify

@@ -1,10 +1,17 @@
 // millkit identify SCENE.toml --data record.csv [--data record2.csv ...] [--config fit.toml]
 //                  --out fit.json [--plot fit.svg] [--trace fit.csv]
-// millkit identify SCENE.toml --campaign manifest.csv [--config fit.toml] --out campaign.csv
-//                  [--trend trend.csv] [--plot PREFIX] (a campaign: millkit/identify/campaign.h)
+// [mpirun -np N] millkit identify SCENE.toml --campaign manifest.csv [--config fit.toml]
+//                  --out campaign.csv [--trend trend.csv] [--plot PREFIX] [--threads N]
+//                  (a campaign: millkit/identify/campaign.h; the ranks share the fits out)
+// millkit identify SCENE.toml --campaign manifest.csv --shard k/N --out part-k.csv
+// millkit identify SCENE.toml --campaign manifest.csv --merge part-1.csv ... --out campaign.csv
+//                  [--trend trend.csv] [--plot PREFIX]  (job arrays without MPI)
 #include <glog/logging.h>
 
+#include <chrono>
+#include <exception>
 #include <filesystem>
+#include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <memory>
@@ -24,6 +31,7 @@
 #include "millkit/io/number_format.h"
 #include "millkit/io/output_files.h"
 #include "millkit/io/progress_line.h"
+#include "millkit/sweep/mpi_runner.h"
 
 namespace millkit::cli {
 namespace {
@@ -33,6 +41,8 @@ struct IdentifyArgs {
   std::vector<std::string> data;
   std::string campaign;
   std::string trend;
+  std::string shard;               // --shard k/N
+  std::vector<std::string> merge;  // --merge part files
   std::string config;
   std::string out;
   std::string plot;
@@ -75,38 +85,12 @@ std::string TrendPlotPath(const std::string& prefix, const std::string& link) {
   return prefix + "." + link + ".svg";
 }
 
-void RunCampaign(const IdentifyArgs& args) {
-  if (!args.trace.empty()) {
-    throw InputError("option --trace: not available with --campaign (fit one record with --data)");
-  }
-  identify::CampaignOptions options;
-  options.threads = args.threads;
-  options.Validate();
-  const driveline::Scene scene = driveline::LoadScene(args.scene);
-  const identify::CampaignManifest manifest =
-      identify::LoadCampaignManifest(args.campaign, args.config, args.time_column);
-  // Every link's plot path is checked before the work; only links with a fitted parameter are
-  // written.
-  std::vector<std::string> inputs = manifest.Inputs();
-  inputs.push_back(args.scene);
-  inputs.push_back(args.config);
-  std::vector<std::pair<std::string, std::string>> outputs = {{"--out", args.out},
-                                                              {"--trend", args.trend}};
-  if (!args.plot.empty()) {
-    for (const auto& link : scene.links) {
-      outputs.emplace_back("--plot", TrendPlotPath(args.plot, link.name));
-    }
-  }
-  CheckOutputPaths(outputs, inputs);
-
-  ProgressLine progress(args.quiet ? nullptr : &std::cerr, "identify campaign");
-  options.progress = [&progress](int done, int total) {
-    progress.Update(std::to_string(done) + " of " + std::to_string(total) + " fits done");
-  };
-  const identify::CampaignResult result = identify::RunCampaign(scene, manifest, options);
-  progress.Finish();
-
-  // Everything is computed before the first file is written, and committed together.
+// The table, trends and plots of a whole campaign, computed before the first file is written and
+// committed together; then the report on stdout and stderr. Exit 3 (NotTrusted) when a row is not
+// ok.
+void WriteCampaign(const IdentifyArgs& args, const driveline::Scene& scene,
+                   const identify::CampaignManifest& manifest,
+                   const identify::CampaignResult& result, const std::string& how) {
   AtomicFile table(args.out);
   table.stream() << identify::CampaignCsv(manifest, result);
   std::optional<AtomicFile> trend_file;
@@ -129,8 +113,7 @@ void RunCampaign(const IdentifyArgs& args) {
   for (auto& plot : plots) plot->Commit();
 
   std::cout << "campaign: " << manifest.rows.size() << " records in " << manifest.fits.size()
-            << " fits, " << result.failed_rows << " not ok; " << FixedNumber(result.wall_time_s, 1)
-            << " s on " << args.threads << (args.threads == 1 ? " thread\n" : " threads\n");
+            << " fits, " << result.failed_rows << " not ok; " << how << "\n";
   for (const auto& trend : result.trends) {
     std::cout << "trend " << trend.stand << " " << trend.parameter << ": ";
     if (trend.defined) {
@@ -156,6 +139,174 @@ void RunCampaign(const IdentifyArgs& args) {
   }
 }
 
+std::string ThreadsText(int threads) {
+  return std::to_string(threads) + (threads == 1 ? " thread" : " threads");
+}
+
+// What every rank reads and checks before the fits.
+struct CampaignInputs {
+  std::optional<identify::CampaignShard> shard;
+  driveline::Scene scene;
+  identify::CampaignManifest manifest;
+};
+
+CampaignInputs ReadCampaignInputs(const IdentifyArgs& args, const sweep::MpiSession& mpi) {
+  if (!args.trace.empty()) {
+    throw InputError("option --trace: not available with --campaign (fit one record with --data)");
+  }
+  CampaignInputs in;
+  if (!args.shard.empty()) {
+    in.shard = identify::ParseCampaignShard(args.shard);
+    if (!in.shard) {
+      throw InputError("option --shard: '" + args.shard +
+                       "' is not k/N with whole numbers 1 <= k <= N (k counts from 1, as "
+                       "SLURM_ARRAY_TASK_ID of --array=1-N)");
+    }
+    if (!args.merge.empty()) {
+      throw InputError(
+          "option --shard: not with --merge (fit a shard first, then merge the parts)");
+    }
+    for (const auto& [option, value] : {std::pair{"--trend", args.trend}, {"--plot", args.plot}}) {
+      if (!value.empty()) {
+        throw InputError(std::string("option ") + option +
+                         ": not with --shard (the trends need every fit: give it to --merge)");
+      }
+    }
+  }
+  if ((in.shard || !args.merge.empty()) && mpi.size() > 1) {
+    throw InputError(std::string("option ") + (in.shard ? "--shard" : "--merge") +
+                     ": not under mpirun with several ranks (the ranks share the fits out "
+                     "themselves)");
+  }
+  identify::CampaignOptions options;
+  options.threads = args.threads;
+  options.Validate();
+  in.scene = driveline::LoadScene(args.scene);
+  in.manifest = identify::LoadCampaignManifest(args.campaign, args.config, args.time_column);
+  // Every link's plot path is checked before the work; only links with a fitted parameter are
+  // written.
+  std::vector<std::string> inputs = in.manifest.Inputs();
+  inputs.push_back(args.scene);
+  inputs.push_back(args.config);
+  inputs.insert(inputs.end(), args.merge.begin(), args.merge.end());
+  std::vector<std::pair<std::string, std::string>> outputs = {{"--out", args.out},
+                                                              {"--trend", args.trend}};
+  if (!args.plot.empty()) {
+    for (const auto& link : in.scene.links) {
+      outputs.emplace_back("--plot", TrendPlotPath(args.plot, link.name));
+    }
+  }
+  CheckOutputPaths(outputs, inputs);
+  return in;
+}
+
+// `--campaign`: on every MPI rank (or alone), `--shard k/N` (a part file) or `--merge` (no fits).
+void RunCampaign(const IdentifyArgs& args) {
+  const auto started = std::chrono::steady_clock::now();
+  const sweep::MpiSession mpi;  // every rank reads and checks the same inputs
+  // A rank whose inputs fail (a file its node does not see) must not leave the others waiting in
+  // the gather: every rank learns of it here and stops.
+  std::optional<CampaignInputs> in;
+  std::exception_ptr error;
+  try {
+    in.emplace(ReadCampaignInputs(args, mpi));
+  } catch (...) {
+    error = std::current_exception();
+  }
+  sweep::ThrowIfAnyRankFailed(mpi, error, "reading the campaign's inputs");
+  const std::optional<identify::CampaignShard>& shard = in->shard;
+  const driveline::Scene& scene = in->scene;
+  const identify::CampaignManifest& manifest = in->manifest;
+  identify::CampaignOptions options;
+  options.threads = args.threads;
+
+  if (!args.merge.empty()) {
+    std::vector<std::pair<std::string, std::string>> parts;
+    parts.reserve(args.merge.size());
+    for (const auto& path : args.merge) {
+      if (!std::filesystem::is_regular_file(path)) {
+        throw InputError("option --merge: '" + path + "' is not a file");
+      }
+      std::ifstream in(path, std::ios::binary);
+      std::ostringstream text;
+      text << in.rdbuf();
+      if (!in) throw InputError("option --merge: '" + path + "' cannot be read");
+      parts.emplace_back(path, text.str());
+    }
+    identify::CampaignResult result =
+        identify::AssembleCampaign(scene, manifest, identify::MergeCampaignParts(manifest, parts));
+    WriteCampaign(
+        args, scene, manifest, result,
+        "merged from " + std::to_string(parts.size()) + (parts.size() == 1 ? " part" : " parts"));
+    return;
+  }
+
+  // This process's fits: a shard, an MPI rank's share, or all of them.
+  const identify::CampaignShard mine =
+      shard ? *shard : identify::CampaignShard{mpi.rank() + 1, mpi.size()};
+  const std::vector<int> fits = mine.Fits(manifest);
+  ProgressLine progress(args.quiet || !mpi.root() ? nullptr : &std::cerr, "identify campaign");
+  options.progress = [&progress](int done, int total) {
+    progress.Update(std::to_string(done) + " of " + std::to_string(total) + " fits done");
+  };
+  if (shard) {
+    AtomicFile part(args.out);
+    const auto outcomes = identify::RunCampaignFits(scene, manifest, fits, options);
+    progress.Finish();
+    part.stream() << identify::CampaignPartCsv(manifest, mine, fits, outcomes);
+    part.Commit();
+    int not_ok = 0;
+    for (const auto& outcome : outcomes) {
+      if (outcome.verdict != "ok") not_ok += static_cast<int>(outcome.rows.size());
+    }
+    std::cout
+        << "campaign shard " << args.shard << ": " << fits.size() << " of " << manifest.fits.size()
+        << " fits, " << not_ok << " records not ok; "
+        << FixedNumber(
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(), 1)
+        << " s on " << ThreadsText(args.threads) << "\n";
+    if (not_ok > 0) {
+      std::cerr << "millkit identify: " << not_ok
+                << " records of this shard not ok; each is reported in its row of " << args.out
+                << "\n";
+      throw NotTrusted("identify");
+    }
+    return;
+  }
+
+  // Every rank fits its share; rank 0 gathers the shares (as part text: numbers that read back
+  // bit for bit), assembles the trends and alone writes.
+  std::vector<identify::CampaignFitOutcome> outcomes;
+  if (mpi.size() == 1) {
+    outcomes = identify::RunCampaignFits(scene, manifest, fits, options);
+  } else {
+    std::string part;
+    try {
+      part = identify::CampaignPartCsv(manifest, mine, fits,
+                                       identify::RunCampaignFits(scene, manifest, fits, options));
+    } catch (...) {
+      error = std::current_exception();
+    }
+    const std::vector<std::string> shares =
+        sweep::GatherBytes(mpi, part, error, "during the campaign");
+    if (!mpi.root()) return;
+    std::vector<std::pair<std::string, std::string>> parts;
+    parts.reserve(shares.size());
+    for (int r = 0; r < mpi.size(); ++r) {
+      parts.emplace_back("MPI rank " + std::to_string(r), shares[r]);
+    }
+    outcomes = identify::MergeCampaignParts(manifest, parts);
+  }
+  progress.Finish();
+  const identify::CampaignResult result = identify::AssembleCampaign(scene, manifest, outcomes);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  WriteCampaign(
+      args, scene, manifest, result,
+      FixedNumber(seconds, 1) + " s on " + ThreadsText(args.threads) +
+          (mpi.size() > 1 ? " per rank, " + std::to_string(mpi.size()) + " MPI ranks" : ""));
+}
+
 void RunIdentify(const IdentifyArgs& args) {
   // Ceres logs through glog; a start that fails to simulate is expected data, reported in the
   // summary, not a message on stderr.
@@ -170,6 +321,8 @@ void RunIdentify(const IdentifyArgs& args) {
     return;
   }
   if (!args.trend.empty()) throw InputError("option --trend: only with --campaign");
+  if (!args.shard.empty()) throw InputError("option --shard: only with --campaign");
+  if (!args.merge.empty()) throw InputError("option --merge: only with --campaign");
   // Open every output first: an unwritable directory fails before minutes of fitting, and a failed
   // fit leaves none of them behind.
   std::vector<std::string> inputs = args.data;
@@ -274,6 +427,13 @@ void AddIdentifyCommand(CLI::App& app) {
   command->add_option("--trend", args->trend,
                       "With --campaign: CSV of the trend lines (slope per day with its standard "
                       "error, per stand and link parameter)");
+  command->add_option("--shard", args->shard,
+                      "With --campaign: k/N, fit only the fits i (0-based, manifest order) with "
+                      "i mod N = k - 1 (k counts from 1) and write a part file to --out for "
+                      "--merge (job arrays without MPI; docs/identify.md#shards)");
+  command->add_option("--merge", args->merge,
+                      "With --campaign: the part files of every shard 1/N ... N/N; writes the "
+                      "table, --trend and --plot of the whole campaign, as one run would");
   command->add_option("--trace", args->trace, "CSV of measured, fitted and residual per channel");
   command->add_option("--threads", args->threads,
                       "Worker threads of the search (scan, starts, hops, probes; default 1, "

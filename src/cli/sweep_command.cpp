@@ -2,8 +2,10 @@
 //                [--threads N] [--quiet]
 // What-if sweep over named scene parameters (issue 5): one CSV row per case, Kd plots. The
 // configuration keys are documented in include/millkit/sweep/sweep_config.h.
+#include <exception>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include "cli/commands.h"
 #include "millkit/io/atomic_file.h"
@@ -32,11 +34,24 @@ void RunSweep(const SweepArgs& args) {
   sweep::RunnerOptions runner;
   runner.threads = args.threads;
   runner.progress = args.quiet || !mpi.root() ? nullptr : &std::cerr;
-  runner.Validate();
-  const driveline::Scene scene = driveline::LoadScene(args.scene);
-  const sweep::SweepConfig config = sweep::LoadSweepConfig(args.config, scene);
-  const sweep::CaseList cases = config.Cases();
-  CheckOutputPaths({{"--out", args.out}, {"--plot", args.plot}}, {args.scene, args.config});
+  // A rank whose inputs fail (a file its node does not see) must not leave the others waiting in
+  // the gather: every rank learns of it before the cases run, and stops.
+  std::optional<driveline::Scene> loaded_scene;
+  std::optional<sweep::SweepConfig> loaded_config;
+  sweep::CaseList cases;
+  std::exception_ptr error;
+  try {
+    runner.Validate();
+    loaded_scene = driveline::LoadScene(args.scene);
+    loaded_config = sweep::LoadSweepConfig(args.config, *loaded_scene);
+    cases = loaded_config->Cases();
+    CheckOutputPaths({{"--out", args.out}, {"--plot", args.plot}}, {args.scene, args.config});
+  } catch (...) {
+    error = std::current_exception();
+  }
+  sweep::ThrowIfAnyRankFailed(mpi, error, "reading the sweep's inputs");
+  const driveline::Scene& scene = *loaded_scene;
+  const sweep::SweepConfig& config = *loaded_config;
 
   sweep::RunnerSummary summary;
   const auto results = sweep::RunCasesDistributed(

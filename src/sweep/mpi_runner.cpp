@@ -115,6 +115,69 @@ MpiSession::~MpiSession() {
 #endif
 }
 
+void ThrowIfAnyRankFailed(const MpiSession& session, const std::exception_ptr& error,
+                          const std::string& activity) {
+  if (session.size() > 1) {
+#if MILLKIT_WITH_MPI
+    int failed_here = error ? 1 : 0, failed_anywhere = 0;
+    MPI_Allreduce(&failed_here, &failed_anywhere, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    if (!error && failed_anywhere) {
+      throw std::runtime_error("another MPI rank failed " + activity + " (see its own message)");
+    }
+#else
+    (void)activity;
+    throw std::logic_error("ThrowIfAnyRankFailed: a multi-rank session without MPI");
+#endif
+  }
+  if (error) std::rethrow_exception(error);
+}
+
+std::vector<std::string> GatherBytes(const MpiSession& session, const std::string& bytes,
+                                     std::exception_ptr error, const std::string& activity) {
+  if (session.size() == 1) {
+    if (error) std::rethrow_exception(error);
+    return {bytes};
+  }
+#if MILLKIT_WITH_MPI
+  const int rank = session.rank(), size = session.size();
+  if (!error && bytes.size() > static_cast<size_t>(INT_MAX)) {
+    error = std::make_exception_ptr(
+        std::runtime_error("rank " + std::to_string(rank) + ": results exceed 2 GiB"));
+  }
+  // Everyone learns whether anyone failed before any data moves.
+  ThrowIfAnyRankFailed(session, error, activity);
+
+  const int count = static_cast<int>(bytes.size());
+  std::vector<int> counts(session.root() ? size : 0), offsets(counts.size());
+  MPI_Gather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+  // The total is checked on rank 0 and its verdict broadcast, so no rank enters the Gatherv alone.
+  int too_large = 0;
+  std::string all;
+  if (session.root()) {
+    long total = 0;
+    for (int r = 0; r < size; ++r) {
+      offsets[r] = static_cast<int>(std::min<long>(total, INT_MAX));
+      total += counts[r];
+    }
+    too_large = total > INT_MAX ? 1 : 0;
+    if (!too_large) all.resize(static_cast<size_t>(total));
+  }
+  MPI_Bcast(&too_large, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  if (too_large) throw std::runtime_error("gathered results exceed 2 GiB (" + activity + ")");
+  MPI_Gatherv(bytes.data(), count, MPI_BYTE, all.data(), counts.data(), offsets.data(), MPI_BYTE, 0,
+              MPI_COMM_WORLD);
+  if (!session.root()) return {};
+  std::vector<std::string> parts(size);
+  for (int r = 0; r < size; ++r) parts[r] = all.substr(offsets[r], counts[r]);
+  return parts;
+#else
+  (void)bytes;
+  (void)error;
+  (void)activity;
+  throw std::logic_error("GatherBytes: a multi-rank session without MPI");
+#endif
+}
+
 std::vector<CaseResult> RunCasesDistributed(const MpiSession& session, const CaseFunction& evaluate,
                                             const CaseList& cases, const RunnerOptions& options,
                                             RunnerSummary* summary) {
@@ -135,40 +198,17 @@ std::vector<CaseResult> RunCasesDistributed(const MpiSession& session, const Cas
   try {
     results = RunCases(evaluate, mine, local, &local_summary);
     for (const auto& r : results) Pack(r, &packed);
-    if (packed.size() > static_cast<size_t>(INT_MAX)) {
-      throw std::runtime_error("rank " + std::to_string(rank) + ": results exceed 2 GiB");
-    }
   } catch (...) {
     error = std::current_exception();
   }
-  // Everyone learns whether anyone failed before any data moves.
-  int failed_here = error ? 1 : 0, failed_anywhere = 0;
-  MPI_Allreduce(&failed_here, &failed_anywhere, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
-  if (error) std::rethrow_exception(error);
-  if (failed_anywhere) throw std::runtime_error("another MPI rank failed during the sweep");
-
-  const int bytes = static_cast<int>(packed.size());
-  std::vector<int> counts(session.root() ? size : 0), offsets(counts.size());
-  MPI_Gather(&bytes, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
-  std::string all;
-  if (session.root()) {
-    long total = 0;
-    for (int r = 0; r < size; ++r) {
-      offsets[r] = static_cast<int>(total);
-      total += counts[r];
-    }
-    if (total > INT_MAX) throw std::runtime_error("gathered results exceed 2 GiB");
-    all.resize(static_cast<size_t>(total));
-  }
-  MPI_Gatherv(packed.data(), bytes, MPI_BYTE, all.data(), counts.data(), offsets.data(), MPI_BYTE,
-              0, MPI_COMM_WORLD);
+  const std::vector<std::string> parts = GatherBytes(session, packed, error, "during the sweep");
   int failed_cases = 0;
   MPI_Reduce(&local_summary.failed, &failed_cases, 1, MPI_INT, MPI_SUM, 0, MPI_COMM_WORLD);
   if (!session.root()) return {};
 
   std::vector<CaseResult> ordered(cases.size());
   for (int r = 0; r < size; ++r) {
-    Reader in{all.data() + offsets[r]};
+    Reader in{parts[r].data()};
     for (size_t i = r; i < cases.size(); i += size) ordered[i] = Unpack(&in);
   }
   if (summary != nullptr) {

@@ -3,8 +3,11 @@
 // output; the same numbers on any thread count.
 #include "millkit/identify/campaign.h"
 
+#include <unistd.h>
+
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -22,6 +25,7 @@ using Catch::Matchers::Contains;
 using millkit::testing::ReadText;
 using millkit::testing::RunMillkit;
 using millkit::testing::ScratchDir;
+using millkit::testing::Shell;
 using millkit::testing::WriteText;
 
 // A two-mass line whose spindle rattles in its gap: motor 2000, roll 800 kg·m², spindle 5e6
@@ -326,5 +330,196 @@ TEST_CASE("an output that is the manifest or a record is refused before any fit"
   CHECK(onto_manifest.exit_code == 2);
   CHECK_THAT(ReadText(campaign.manifest_path), Contains("file,time,stand"));
 }
+
+// Shards, merges and MPI ranks (issue 15 item 4): the same files as one run, byte for byte.
+
+namespace {
+
+// The outputs of one campaign run under `dir/name`: table, trend and the spindle's plot.
+struct Outputs {
+  std::filesystem::path dir;
+  std::string Options() const {
+    return "--out '" + (dir / "campaign.csv").string() + "' --trend '" +
+           (dir / "trend.csv").string() + "' --plot '" + (dir / "trend").string() + "'";
+  }
+  void RequireSame(const Outputs& serial) const {
+    for (const char* file : {"campaign.csv", "trend.csv", "trend.spindle.svg"}) {
+      INFO(file);
+      REQUIRE(std::filesystem::exists(serial.dir / file));
+      CHECK(ReadText(dir / file) == ReadText(serial.dir / file));
+    }
+  }
+};
+
+Outputs MakeOutputs(const Campaign& campaign, const std::string& name) {
+  Outputs outputs{campaign.dir / name};
+  std::filesystem::create_directories(outputs.dir);
+  return outputs;
+}
+
+// A campaign with a failed row (a missing record): failed rows travel between ranks and parts
+// too; the serial run exits 3.
+constexpr const char* kGoneRow = "records/gone.csv,2026-03-01,F1\n";
+
+}  // namespace
+
+TEST_CASE("shards 1/2 and 2/2 merged write the same table, trend and plots as one run",
+          "[campaign][shard]") {
+  const Campaign campaign(kGoneRow);
+  const Outputs serial = MakeOutputs(campaign, "serial");
+  const auto one = RunMillkit(campaign.Cli(serial.Options()));
+  INFO(one.stderr_text);
+  REQUIRE(one.exit_code == 3);
+  const auto parts = campaign.dir / "parts";
+  std::filesystem::create_directories(parts);
+  for (const char* k : {"1", "2"}) {
+    const auto shard =
+        RunMillkit(campaign.Cli("--shard " + std::string(k) + "/2 --out '" +
+                                (parts / ("part-" + std::string(k) + ".csv")).string() + "'"));
+    INFO(shard.stderr_text);
+    // Fits 0, 2, 4, 6 (the gone record is fit 6) and 1, 3, 5: shard 1 has the failed row.
+    CHECK(shard.exit_code == (k == std::string("1") ? 3 : 0));
+  }
+  // Parts in either order give the same files.
+  const Outputs merged = MakeOutputs(campaign, "merged");
+  const auto merge =
+      RunMillkit(campaign.Cli("--merge '" + (parts / "part-2.csv").string() + "' '" +
+                              (parts / "part-1.csv").string() + "' " + merged.Options()));
+  INFO(merge.stderr_text);
+  CHECK(merge.exit_code == 3);
+  merged.RequireSame(serial);
+  CHECK(merge.stdout_text.substr(merge.stdout_text.find('\n')) ==
+        one.stdout_text.substr(one.stdout_text.find('\n')));  // the trend lines
+}
+
+TEST_CASE("a bad --shard value exits 2 naming the option and writes nothing",
+          "[campaign][shard][bad_input]") {
+  const Campaign campaign;
+  const auto out = campaign.dir / "out";
+  std::filesystem::create_directories(out);
+  for (const char* bad : {"0/2", "3/2", "1/0", "2", "a/b", "1/2/3", "-1/2", "1/", "/2", "1.5/2"}) {
+    INFO(bad);
+    const auto result = RunMillkit(campaign.Cli("--shard '" + std::string(bad) + "' --out '" +
+                                                (out / "part.csv").string() + "'"));
+    CHECK(result.exit_code == 2);
+    CHECK_THAT(result.stderr_text, Contains("option --shard: '" + std::string(bad) + "'"));
+  }
+  const auto with_trend =
+      RunMillkit(campaign.Cli("--shard 1/2 --out '" + (out / "part.csv").string() + "' --trend '" +
+                              (out / "trend.csv").string() + "'"));
+  CHECK(with_trend.exit_code == 2);
+  CHECK_THAT(with_trend.stderr_text, Contains("option --trend: not with --shard"));
+  CHECK(std::filesystem::is_empty(out));
+}
+
+TEST_CASE("bad --merge parts exit 2 naming the part and its line, and write nothing",
+          "[campaign][shard][bad_input]") {
+  // Records that do not exist: every fit fails at once, so the parts are quick to make.
+  const Campaign campaign;
+  const std::string manifest =
+      "file,time,stand\nrecords/x0.csv,2026-01-05,F1\nrecords/x1.csv,2026-01-06,F1\n"
+      "records/x2.csv,2026-01-07,F1\n";
+  WriteText(campaign.manifest_path, manifest);
+  const auto parts = campaign.dir / "parts";
+  std::filesystem::create_directories(parts);
+  const auto part = [&](const std::string& name) { return (parts / name).string(); };
+  for (const char* shard : {"1/2", "2/2", "2/3"}) {
+    const std::string name = std::string("p") + shard[0] + shard[2] + ".csv";
+    const auto made =
+        RunMillkit(campaign.Cli("--shard " + std::string(shard) + " --out '" + part(name) + "'"));
+    INFO(made.stderr_text);
+    REQUIRE(made.exit_code == 3);  // its fits failed: rows, not a failure of the run
+  }
+  // A part of another manifest (another file on line 3), a part whose number is not one, a file
+  // that is not a part.
+  std::string other = ReadText(part("p22.csv"));
+  const std::string x1 = "\"records/x1.csv\"";
+  REQUIRE(other.find(x1) != std::string::npos);
+  WriteText(part("other.csv"), other.replace(other.find(x1), x1.size(), "\"records/y1.csv\""));
+  std::string garbled = ReadText(part("p22.csv"));
+  const auto last = garbled.rfind(",,,,");
+  REQUIRE(last != std::string::npos);
+  WriteText(part("garbled.csv"), garbled.replace(last, 4, ",\"gap\",\"rad\",1e-3,abc"));
+  WriteText(part("table.csv"), "file,time,stand\n");
+  struct Case {
+    std::vector<std::string> parts;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {{"p12.csv"}, "manifest.csv: line 3 ('records/x1.csv', fit 1) is in no part"},
+      {{"p12.csv", "p22.csv", "p12.csv"}, "is already in"},
+      {{"p12.csv", "other.csv"}, "other.csv: line 3: fit 1, manifest line 3"},
+      {{"p12.csv", "garbled.csv"}, "garbled.csv: line 3, column 'standard_error': 'abc' is not a"},
+      {{"p12.csv", "p23.csv"}, "p23.csv: line 3, column 'shard': a part of 3 shards, but"},
+      {{"table.csv"}, "table.csv: line 1: not a campaign part"},
+      {{"p12.csv", "missing.csv"}, "option --merge: '"},
+  };
+  const auto out = campaign.dir / "out";
+  std::filesystem::create_directories(out);
+  for (const auto& c : cases) {
+    std::string list;
+    for (const auto& p : c.parts) list += " '" + part(p) + "'";
+    INFO(list);
+    const auto result =
+        RunMillkit(campaign.Cli("--merge" + list + " --out '" + (out / "campaign.csv").string() +
+                                "' --trend '" + (out / "trend.csv").string() + "'"));
+    CHECK(result.exit_code == 2);
+    CHECK_THAT(result.stderr_text, Contains(c.message));
+    CHECK(std::filesystem::is_empty(out));
+  }
+  // The complete set merges (every fit failed: exit 3, every file written).
+  const auto good =
+      RunMillkit(campaign.Cli("--merge '" + part("p12.csv") + "' '" + part("p22.csv") +
+                              "' --out '" + (out / "campaign.csv").string() + "'"));
+  CHECK(good.exit_code == 3);
+  CHECK_THAT(ReadText(out / "campaign.csv"), Contains("\"records/x2.csv\",\"2026-01-07\""));
+}
+
+#if MILLKIT_WITH_MPI
+TEST_CASE("mpirun -np 2 writes the same campaign table, trend and plots as a serial run",
+          "[campaign][cli][mpi]") {
+  const Campaign campaign(kGoneRow);
+  const Outputs serial = MakeOutputs(campaign, "serial");
+  REQUIRE(RunMillkit(campaign.Cli(serial.Options())).exit_code == 3);
+  const Outputs mpi = MakeOutputs(campaign, "mpi");
+  const std::string root = geteuid() == 0 ? " --allow-run-as-root" : "";
+  const int code = Shell(campaign.dir, "mpirun -np 2 --oversubscribe" + root +
+                                           " '" MILLKIT_BINARY "' " + campaign.Cli(mpi.Options()));
+  INFO(ReadText(campaign.dir / "stderr"));
+  CHECK(code == 3);  // the gone record's row: exit 3 from rank 0, as the serial run
+  mpi.RequireSame(serial);
+  CHECK_THAT(ReadText(campaign.dir / "stdout"), Contains("2 MPI ranks"));
+}
+
+TEST_CASE("a rank whose inputs fail stops every rank: no hang, no output",
+          "[campaign][cli][mpi][bad_input]") {
+  // Two programs in one job (MPMD): rank 1 gets a --threads it refuses, rank 0 good inputs. Rank 0
+  // must not wait for rank 1 in the gather; `timeout` turns a hang into exit 124.
+  const Campaign campaign;
+  const Outputs outputs = MakeOutputs(campaign, "out");
+  const std::string root = geteuid() == 0 ? " --allow-run-as-root" : "";
+  const std::string program = " '" MILLKIT_BINARY "' " + campaign.Cli(outputs.Options());
+  const int code = Shell(campaign.dir, "timeout 120 mpirun --oversubscribe" + root + " -np 1" +
+                                           program + " : -np 1" + program + " --threads 0");
+  const std::string stderr_text = ReadText(campaign.dir / "stderr");
+  INFO(stderr_text);
+  CHECK(code != 0);
+  CHECK(code != 124);
+  CHECK_THAT(stderr_text, Contains("option --threads: must lie in [1, 256] (got 0)"));
+  CHECK_THAT(stderr_text, Contains("another MPI rank failed reading the campaign's inputs"));
+  CHECK(std::filesystem::is_empty(outputs.dir));
+}
+#else
+TEST_CASE("a millkit built without MPI refuses a campaign as several mpirun ranks",
+          "[campaign][cli][mpi][bad_input]") {
+  const Campaign campaign;
+  const Outputs outputs = MakeOutputs(campaign, "out");
+  const int code = Shell(campaign.dir, "OMPI_COMM_WORLD_SIZE=2 '" MILLKIT_BINARY "' " +
+                                           campaign.Cli(outputs.Options()));
+  CHECK(code == 2);
+  CHECK_THAT(ReadText(campaign.dir / "stderr"), Contains("built without MPI"));
+  CHECK(std::filesystem::is_empty(outputs.dir));
+}
+#endif
 
 }  // namespace millkit::identify

@@ -77,4 +77,13 @@ inline CliResult RunMillkit(const std::string& arguments) {
   return result;
 }
 
+// Runs a shell command line with stdout and stderr to the files `dir`/stdout and `dir`/stderr;
+// the exit code (−1 when it did not exit).
+inline int Shell(const ScratchDir& dir, const std::string& command) {
+  const std::string line =
+      command + " >'" + (dir / "stdout").string() + "' 2>'" + (dir / "stderr").string() + "'";
+  const int status = std::system(line.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
 }  // namespace millkit::testing

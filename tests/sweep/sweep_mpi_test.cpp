@@ -24,29 +24,39 @@ std::string SweepArguments(const ScratchDir& dir, const std::string& out) {
          (dir / "sweep.toml").string() + "' --out '" + (dir / out).string() + "' --quiet";
 }
 
-// Runs a shell command line, stdout and stderr to files in `dir`; the exit code.
-int Shell(const ScratchDir& dir, const std::string& command) {
-  const std::string line =
-      command + " >'" + (dir / "stdout").string() + "' 2>'" + (dir / "stderr").string() + "'";
-  const int status = std::system(line.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
 }  // namespace
 
 #if MILLKIT_WITH_MPI
 TEST_CASE("mpirun -np 2 writes the same rows as a serial run", "[sweep][cli][mpi]") {
   ScratchDir dir;
   WriteText(dir / "sweep.toml", kConfig);
-  REQUIRE(RunMillkit(SweepArguments(dir, "serial.csv")).exit_code == 0);
+  // The stiffest cases fail: exit 3 with every file written, on one rank and on two.
+  REQUIRE(RunMillkit(SweepArguments(dir, "serial.csv")).exit_code == 3);
   const std::string root = geteuid() == 0 ? " --allow-run-as-root" : "";
   const int code = Shell(dir, "mpirun -np 2 --oversubscribe" + root + " '" MILLKIT_BINARY "' " +
                                   SweepArguments(dir, "mpi.csv") + " --threads 2");
   INFO(ReadText(dir / "stderr"));
-  REQUIRE(code == 0);
+  REQUIRE(code == 3);
   const std::string serial = ReadText(dir / "serial.csv");
   CHECK(ReadText(dir / "mpi.csv") == serial);
   CHECK_THAT(serial, Contains(",failed,") && Contains(",ok,"));
+}
+
+TEST_CASE("a sweep rank whose inputs fail stops every rank: no hang, no output",
+          "[sweep][cli][mpi][bad_input]") {
+  // Rank 1 (MPMD) gets a --threads it refuses; `timeout` turns a hang of rank 0 into exit 124.
+  ScratchDir dir;
+  WriteText(dir / "sweep.toml", kConfig);
+  const std::string root = geteuid() == 0 ? " --allow-run-as-root" : "";
+  const std::string program = " '" MILLKIT_BINARY "' " + SweepArguments(dir, "mpi.csv");
+  const int code = Shell(dir, "timeout 120 mpirun --oversubscribe" + root + " -np 1" + program +
+                                  " : -np 1" + program + " --threads 0");
+  const std::string stderr_text = ReadText(dir / "stderr");
+  INFO(stderr_text);
+  CHECK(code != 0);
+  CHECK(code != 124);
+  CHECK_THAT(stderr_text, Contains("another MPI rank failed reading the sweep's inputs"));
+  CHECK_FALSE(std::filesystem::exists(dir / "mpi.csv"));
 }
 #else
 TEST_CASE("a millkit built without MPI refuses to run as several mpirun ranks",

@@ -34,6 +34,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "millkit/driveline/scene.h"
@@ -136,9 +137,67 @@ struct CampaignResult {
 };
 
 // Fits every record (or group) of the manifest to `scene` and fits the trends. Throws InputError
-// only for bad options.
+// only for bad options. The same as AssembleCampaign of RunCampaignFits over every fit.
 CampaignResult RunCampaign(const driveline::Scene& scene, const CampaignManifest& manifest,
                            const CampaignOptions& options);
+
+// What one fit (a manifest row, or a group) gives its rows: the unit of work that MPI ranks and
+// shards share out, and what travels between them.
+struct CampaignFitOutcome {
+  std::string verdict = "failed";  // as CampaignRowResult
+  std::string reason;
+  struct Estimate {
+    std::string name;  // scene parameter name (a per-record copy under its scene name)
+    std::string unit;
+    double value = 0.0;
+    double standard_error = 0.0;  // NaN where not identifiable
+  };
+  std::vector<std::vector<Estimate>> rows;  // per row of the fit, in the fit's order
+};
+
+// Runs the fits `fits` (indices into manifest.fits) over options.threads; outcomes in the order of
+// `fits`. Throws InputError only for bad options.
+std::vector<CampaignFitOutcome> RunCampaignFits(const driveline::Scene& scene,
+                                                const CampaignManifest& manifest,
+                                                const std::vector<int>& fits,
+                                                const CampaignOptions& options);
+
+// The table's columns, rows and trends from one outcome per fit (in manifest.fits order); the
+// numbers depend only on the outcomes, not on where or in which order they were made.
+// wall_time_s is left 0.
+CampaignResult AssembleCampaign(const driveline::Scene& scene, const CampaignManifest& manifest,
+                                const std::vector<CampaignFitOutcome>& outcomes);
+
+// A share of a campaign's fits for a job array (`--shard k/N`): the fits whose index i (0-based,
+// manifest order of each fit's first row) has i mod count == index − 1. `index` is 1-based, as
+// Slurm's SLURM_ARRAY_TASK_ID of `--array=1-N`; the MPI rank r runs shard r + 1 of the ranks.
+struct CampaignShard {
+  int index = 1;  // 1 … count
+  int count = 1;  // ≥ 1
+
+  std::vector<int> Fits(const CampaignManifest& manifest) const;
+};
+
+// "k/N" with decimal 1 ≤ k ≤ N; none for anything else.
+std::optional<CampaignShard> ParseCampaignShard(const std::string& text);
+
+// A partial result (docs/identify.md, "Shards"): a '#' comment line, then the header
+// shard,fit,line,file,time,stand,group,verdict,reason,parameter,unit,value,standard_error and one
+// line per estimate of each row of `fits` (one line with empty parameter, unit, value and standard
+// error for a row without any), text cells quoted, numbers shortest round-trip (nan, inf, -inf
+// when not finite) so they read back bit for bit. `outcomes` in the order of `fits`.
+std::string CampaignPartCsv(const CampaignManifest& manifest, const CampaignShard& shard,
+                            const std::vector<int>& fits,
+                            const std::vector<CampaignFitOutcome>& outcomes);
+
+// One outcome per fit of `manifest` from parts written by CampaignPartCsv: (source name, text)
+// pairs. Throws InputError naming the part and its line when a part is not one (header, cell
+// count, a number), its lines do not match the manifest (line, file, time, stand, group: parts of
+// another manifest), its shards disagree (k/N with another N, a fit not of its shard), a fit comes
+// in two parts or a parameter twice in one row, or a fit or a row of one is in no part.
+std::vector<CampaignFitOutcome> MergeCampaignParts(
+    const CampaignManifest& manifest,
+    const std::vector<std::pair<std::string, std::string>>& parts);
 
 // Days since the manifest's epoch of each fit: the mean of its rows' times.
 double FitDay(const CampaignManifest& manifest, int fit);

@@ -4,9 +4,10 @@
 // rank on its own thread pool; the results travel as raw bytes, so the rows are bitwise those of
 // a serial run.
 //
-// MPI is optional at build time (CMake option MILLKIT_WITH_MPI, OpenMPI from Debian). MPI is
-// initialised only when the program was started by mpirun (OMPI_COMM_WORLD_SIZE or PMI_SIZE in the
-// environment); otherwise everything runs in this process. A program built
+// MPI is built in when CMake finds it (option MILLKIT_WITH_MPI: AUTO by default, ON, OFF; OpenMPI
+// from Debian). Campaigns (`identify --campaign`) share their fits out the same way through
+// GatherBytes. MPI is initialised only when the program was started by mpirun (OMPI_COMM_WORLD_SIZE
+// or PMI_SIZE in the environment); otherwise everything runs in this process. A program built
 // without MPI but started by mpirun with more than one rank refuses to run (InputError), rather
 // than have every rank run every case.
 //
@@ -14,6 +15,8 @@
 // before any data moves; if any rank failed, every rank throws.
 #pragma once
 
+#include <exception>
+#include <string>
 #include <vector>
 
 #include "millkit/sweep/sweep_runner.h"
@@ -38,6 +41,22 @@ class MpiSession {
   int size_ = 1;
   bool initialised_ = false;
 };
+
+// Collective (every rank calls it): every rank learns whether any rank failed (`error` is this
+// rank's failure, null for none). The failing rank rethrows its own error, the others throw
+// std::runtime_error naming `activity`; so a rank whose inputs fail (a file its node does not see)
+// does not leave the others waiting in a later collective. A single-process session rethrows
+// `error` if any.
+void ThrowIfAnyRankFailed(const MpiSession& session, const std::exception_ptr& error,
+                          const std::string& activity);
+
+// Collective (every rank calls it): one byte string per rank gathered on rank 0, indexed by rank;
+// other ranks get an empty vector. `error` is this rank's failure before the call (null: none):
+// every rank first learns whether any rank failed, then the failing rank rethrows its own error
+// and the others throw std::runtime_error naming `activity`, so no rank waits for data that never
+// comes. A single-process session returns {bytes} (or rethrows `error`).
+std::vector<std::string> GatherBytes(const MpiSession& session, const std::string& bytes,
+                                     std::exception_ptr error, const std::string& activity);
 
 // RunCases over all ranks. On rank 0: every case's result in case order, and `summary` for the
 // whole run (cases, failures, this rank's threads, wall time to the gathered result). On other
