@@ -25,6 +25,7 @@
 #include <sstream>
 #include <string>
 
+#include "identify/campaign_line.h"
 #include "millkit/driveline/scene.h"
 #include "millkit/driveline/scene_parameter.h"
 #include "millkit/identify/oscillogram.h"
@@ -36,57 +37,15 @@ using namespace millkit::identify;
 
 namespace {
 
-// The scene of tests/identify/campaign_test.cpp: a two-mass line whose spindle rattles in its gap.
-constexpr const char* kScene = R"([scene]
-name = "two-mass campaign line"
-duration = 0.3
-sample_rate = 4000
-
-[initial]
-speed = 10.0
-
-[[mass]]
-name = "motor"
-inertia = 2000.0
-[[mass]]
-name = "roll"
-inertia = 800.0
-
-[[link]]
-name = "spindle"
-between = ["motor", "roll"]
-stiffness = 5.0e6
-damping = 5000.0
-backlash = 0.010
-
-[[torque]]
-at = "roll"
-after = -150000.0
-start = 0.05
-rise = 0.008
-)";
-
-constexpr double kGapAtDay0_rad = 0.008;
-constexpr double kWearPerDay_rad = 1.0e-4;
-constexpr double kTrueDamping = 5200.0;
-constexpr double kTrueBite_s = 0.052;
+// The line of tests/identify/campaign_test.cpp (identify/campaign_line.h).
+constexpr const char* kScene = kCampaignLineScene;
 // One record a day; after 100 days the wear starts again (a new spindle every 100 days keeps the
 // gap within the prior's reach for any --records).
 constexpr int kDaysPerSpindle = 100;
 
 std::string RecordCsv(const driveline::Scene& prior, int day, unsigned long seed) {
-  driveline::Scene truth = prior;
-  const double gap = kGapAtDay0_rad + kWearPerDay_rad * (day % kDaysPerSpindle);
-  driveline::ParseSceneParameter(truth, "spindle.backlash", "bench").Set(gap, &truth);
-  driveline::ParseSceneParameter(truth, "spindle.damping", "bench").Set(kTrueDamping, &truth);
-  driveline::ParseSceneParameter(truth, "bite_time", "bench").Set(kTrueBite_s, &truth);
-  RecordSpec spec;
-  spec.defects.sample_rate_Hz = 2000.0;
-  spec.defects.noise_fraction = 0.01;
-  spec.defects.bits = 12;
-  spec.defects.seed = seed;
-  spec.channels = {{"spindle", truth.LinkIndex("spindle"), 1.02, 500.0}};
-  return FormatOscillogram(GenerateRecord(truth, spec));
+  return CampaignLineRecordCsv(
+      prior, kCampaignGapAtDay0_rad + kCampaignWearPerDay_rad * (day % kDaysPerSpindle), seed);
 }
 
 // YYYY-MM-DD of 2026-01-01 plus `day` days.

@@ -111,6 +111,61 @@ bool IsSignalIdRow(const std::vector<std::string>& header) {
   return ids > 0 && ids + 1 >= static_cast<int>(header.size());
 }
 
+// The header and the data rows as text cells: the separator detected on the header (into
+// *separator), a UTF-8 byte-order mark dropped, blank and '#' lines skipped, a separator that
+// ends every line making no column. With `iba_ids`, a header of iba signal IDs may leave a cell
+// empty (its name comes from the names row).
+TextTable SplitTable(const std::string& text, const std::string& source, bool iba_ids,
+                     char* separator_out) {
+  TextTable table;
+  table.source = source;
+  std::istringstream in(text);
+  std::string line;
+  int line_number = 0;
+  bool trailing_separator = false;
+  char separator = ',';
+  while (std::getline(in, line)) {
+    ++line_number;
+    // A UTF-8 byte-order mark (spreadsheet and logger exports) is not part of the first name.
+    if (line_number == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
+    const std::string trimmed = Trim(line);
+    if (trimmed.empty() || trimmed[0] == '#') continue;
+    if (table.header_line == 0) {
+      separator = DetectSeparator(line, Line(source, line_number));
+      std::vector<std::string> cells = SplitCells(line, separator);
+      // A separator at the end of every line (some exports) makes no column.
+      if (cells.size() > 1 && cells.back().empty()) {
+        cells.pop_back();
+        trailing_separator = true;
+      }
+      // An iba export may leave its time column's ID cell empty (named by its names row).
+      const bool iba = iba_ids && IsSignalIdRow(cells);
+      for (size_t j = 0; j < cells.size(); ++j) {
+        if (cells[j].empty() && !iba) {
+          throw InputError(Line(source, line_number) + ": header column " + std::to_string(j + 1) +
+                           " has no name");
+        }
+      }
+      table.columns = cells;
+      table.header_line = line_number;
+      continue;
+    }
+    std::vector<std::string> cells = SplitCells(line, separator);
+    if (trailing_separator && cells.size() == table.columns.size() + 1 && cells.back().empty()) {
+      cells.pop_back();
+    }
+    if (cells.size() != table.columns.size()) {
+      throw InputError(Line(source, line_number) + ": " + std::to_string(cells.size()) +
+                       " cells, the header has " + std::to_string(table.columns.size()));
+    }
+    table.rows.push_back(std::move(cells));
+    table.line_numbers.push_back(line_number);
+  }
+  if (table.header_line == 0) throw InputError(source + ": empty file, expected a header row");
+  if (separator_out != nullptr) *separator_out = separator;
+  return table;
+}
+
 }  // namespace
 
 bool IsSignalId(const std::string& cell) {
@@ -151,52 +206,13 @@ std::vector<double> CsvTable::ColumnValues(int column) const {
 CsvTable ParseCsv(const std::string& text, const std::string& source) {
   CsvTable table;
   table.source = source;
-  std::istringstream in(text);
-  std::string line;
-  int line_number = 0;
-  bool have_header = false;
-  bool trailing_separator = false;
   char separator = ',';
-  std::vector<std::vector<std::string>> raw;  // data cells as text, decided per column below
-  while (std::getline(in, line)) {
-    ++line_number;
-    // A UTF-8 byte-order mark (spreadsheet and logger exports) is not part of the first name.
-    if (line_number == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
-    const std::string trimmed = Trim(line);
-    if (trimmed.empty() || trimmed[0] == '#') continue;
-    if (!have_header) {
-      separator = DetectSeparator(line, Line(source, line_number));
-      std::vector<std::string> cells = SplitCells(line, separator);
-      // A separator at the end of every line (some exports) makes no column.
-      if (cells.size() > 1 && cells.back().empty()) {
-        cells.pop_back();
-        trailing_separator = true;
-      }
-      // An iba export may leave its time column's ID cell empty (named by its names row).
-      const bool iba = IsSignalIdRow(cells);
-      for (size_t j = 0; j < cells.size(); ++j) {
-        if (cells[j].empty() && !iba) {
-          throw InputError(Line(source, line_number) + ": header column " + std::to_string(j + 1) +
-                           " has no name");
-        }
-      }
-      table.columns = cells;
-      table.header_line = line_number;
-      have_header = true;
-      continue;
-    }
-    std::vector<std::string> cells = SplitCells(line, separator);
-    if (trailing_separator && cells.size() == table.columns.size() + 1 && cells.back().empty()) {
-      cells.pop_back();
-    }
-    if (cells.size() != table.columns.size()) {
-      throw InputError(Line(source, line_number) + ": " + std::to_string(cells.size()) +
-                       " cells, the header has " + std::to_string(table.columns.size()));
-    }
-    raw.push_back(std::move(cells));
-    table.line_numbers.push_back(line_number);
-  }
-  if (!have_header) throw InputError(source + ": empty file, expected a header row");
+  TextTable cells = SplitTable(text, source, /*iba_ids=*/true, &separator);
+  table.columns = std::move(cells.columns);
+  table.header_line = cells.header_line;
+  table.line_numbers = std::move(cells.line_numbers);
+  // Data cells as text, decided per column below.
+  std::vector<std::vector<std::string>> raw = std::move(cells.rows);
 
   const bool decimal_comma = separator != ',';
   double value = 0.0;
@@ -296,48 +312,7 @@ int TextTable::Find(const std::string& name) const {
 }
 
 TextTable ParseTextCsv(const std::string& text, const std::string& source) {
-  TextTable table;
-  table.source = source;
-  std::istringstream in(text);
-  std::string line;
-  int line_number = 0;
-  bool trailing_separator = false;
-  char separator = ',';
-  while (std::getline(in, line)) {
-    ++line_number;
-    if (line_number == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
-    const std::string trimmed = Trim(line);
-    if (trimmed.empty() || trimmed[0] == '#') continue;
-    if (table.header_line == 0) {
-      separator = DetectSeparator(line, Line(source, line_number));
-      std::vector<std::string> cells = SplitCells(line, separator);
-      if (cells.size() > 1 && cells.back().empty()) {
-        cells.pop_back();
-        trailing_separator = true;
-      }
-      for (size_t j = 0; j < cells.size(); ++j) {
-        if (cells[j].empty()) {
-          throw InputError(Line(source, line_number) + ": header column " + std::to_string(j + 1) +
-                           " has no name");
-        }
-      }
-      table.columns = cells;
-      table.header_line = line_number;
-      continue;
-    }
-    std::vector<std::string> cells = SplitCells(line, separator);
-    if (trailing_separator && cells.size() == table.columns.size() + 1 && cells.back().empty()) {
-      cells.pop_back();
-    }
-    if (cells.size() != table.columns.size()) {
-      throw InputError(Line(source, line_number) + ": " + std::to_string(cells.size()) +
-                       " cells, the header has " + std::to_string(table.columns.size()));
-    }
-    table.rows.push_back(std::move(cells));
-    table.line_numbers.push_back(line_number);
-  }
-  if (table.header_line == 0) throw InputError(source + ": empty file, expected a header row");
-  return table;
+  return SplitTable(text, source, /*iba_ids=*/false, nullptr);
 }
 
 TextTable ReadTextCsv(const std::filesystem::path& path) {

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "identify/campaign_line.h"
 #include "millkit/driveline/scene.h"
 #include "millkit/driveline/scene_parameter.h"
 #include "millkit/identify/oscillogram.h"
@@ -28,43 +29,11 @@ using millkit::testing::ScratchDir;
 using millkit::testing::Shell;
 using millkit::testing::WriteText;
 
-// A two-mass line whose spindle rattles in its gap: motor 2000, roll 800 kg·m², spindle 5e6
-// N·m/rad (one mode at 14.9 Hz), damping 5000 N·m·s/rad (ζ ≈ 5 %), gap 10 mrad in the prior;
-// the roll load −150 kN·m twists the spindle by about twice the gap.
-constexpr const char* kScene = R"([scene]
-name = "two-mass campaign line"
-duration = 0.3
-sample_rate = 4000
-
-[initial]
-speed = 10.0
-
-[[mass]]
-name = "motor"
-inertia = 2000.0
-[[mass]]
-name = "roll"
-inertia = 800.0
-
-[[link]]
-name = "spindle"
-between = ["motor", "roll"]
-stiffness = 5.0e6
-damping = 5000.0
-backlash = 0.010
-
-[[torque]]
-at = "roll"
-after = -150000.0
-start = 0.05
-rise = 0.008
-)";
-
-// The truth: the gap opens by kWearPerDay from kGapAtDay0; damping and bite time stay.
-constexpr double kGapAtDay0_rad = 0.008;
-constexpr double kWearPerDay_rad = 1.0e-4;
-constexpr double kTrueDamping = 5200.0;
-constexpr double kTrueBite_s = 0.052;
+// The line and its truth: identify/campaign_line.h.
+constexpr const char* kScene = kCampaignLineScene;
+constexpr double kGapAtDay0_rad = kCampaignGapAtDay0_rad;
+constexpr double kWearPerDay_rad = kCampaignWearPerDay_rad;
+constexpr double kTrueDamping = kCampaignTrueDamping;
 // Record times as a logger would stamp them, and their days after the first (by hand).
 struct Stamp {
   const char* iso;
@@ -80,19 +49,9 @@ constexpr double kSlopeSe = 3.0;
 
 double TrueGap(double day) { return kGapAtDay0_rad + kWearPerDay_rad * day; }
 
-// A record of the line with the gap of `day`: 2 kHz, 1 % noise, 12-bit ADC, gain and offset off.
+// A record of the line with the gap of `day` (identify/campaign_line.h).
 std::string RecordCsv(const driveline::Scene& prior, double day, unsigned long seed) {
-  driveline::Scene truth = prior;
-  driveline::ParseSceneParameter(truth, "spindle.backlash", "test").Set(TrueGap(day), &truth);
-  driveline::ParseSceneParameter(truth, "spindle.damping", "test").Set(kTrueDamping, &truth);
-  driveline::ParseSceneParameter(truth, "bite_time", "test").Set(kTrueBite_s, &truth);
-  RecordSpec spec;
-  spec.defects.sample_rate_Hz = 2000.0;
-  spec.defects.noise_fraction = 0.01;
-  spec.defects.bits = 12;
-  spec.defects.seed = seed;
-  spec.channels = {{"spindle", truth.LinkIndex("spindle"), 1.02, 500.0}};
-  return FormatOscillogram(GenerateRecord(truth, spec));
+  return CampaignLineRecordCsv(prior, TrueGap(day), seed);
 }
 
 // The scene, six records and their manifest in a scratch directory (records in a subdirectory:
