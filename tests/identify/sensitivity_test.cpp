@@ -84,6 +84,13 @@ struct Tally {
   long dropped = 0;    // of them, inside the interval an event sweeps (CentralDifference)
   int noisy = 0;       // columns within the differences' spread only
   double worst = 0.0;  // largest difference / allowed
+
+  void Print(const char* label) const {
+    std::printf(
+        "%s: %d points, %d columns compared, %d skipped, %d unavailable, worst difference / "
+        "allowed %.3g, %ld of %ld samples next to an event, %d within the spread only\n",
+        label, points, compared, skipped, unavailable, worst, dropped, samples, noisy);
+  }
 };
 
 // The parameters of a scene: each link's damping and backlash, the first stiffness, the last
@@ -205,12 +212,7 @@ TEST_CASE("Sensitivities agree with central differences at 200 points of random 
     scene.duration_s = 0.15;
     ComparePoint(scene, &random, ("seed " + std::to_string(seed)).c_str(), &tally);
   }
-  std::printf(
-      "random lines: %d points, %d columns compared, %d skipped, %d unavailable, "
-      "worst difference / allowed %.3g, %ld of %ld samples next to an event, %d within "
-      "the spread only\n",
-      tally.points, tally.compared, tally.skipped, tally.unavailable, tally.worst, tally.dropped,
-      tally.samples, tally.noisy);
+  tally.Print("random lines");
   CHECK(tally.points >= 200);
   CHECK(tally.noisy <= tally.compared / 100);
   CHECK(tally.unavailable <= 10);
@@ -230,12 +232,7 @@ TEST_CASE("Sensitivities agree with central differences on the bundled scenes", 
       }
     }
   }
-  std::printf(
-      "bundled scenes: %d points, %d columns compared, %d skipped, %d unavailable, "
-      "worst difference / allowed %.3g, %ld of %ld samples next to an event, %d within "
-      "the spread only\n",
-      tally.points, tally.compared, tally.skipped, tally.unavailable, tally.worst, tally.dropped,
-      tally.samples, tally.noisy);
+  tally.Print("bundled scenes");
   CHECK(tally.points >= 30);
   CHECK(tally.noisy <= tally.compared / 10);
 }
