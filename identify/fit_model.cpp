@@ -444,6 +444,7 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
         else
           jac.col(i) *= ParameterMap::UnitPerAngle(parameters[0][i]);
       }
+      remaining_step_se_ = GaussNewtonStepInStandardErrors(jac, r);
       return true;
     }
     // Not available here (a grazing event, a degenerate switch): forward differences.
@@ -484,7 +485,21 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
     }
     jac.col(i) *= ParameterMap::UnitPerAngle(parameters[0][i]);
   }
+  remaining_step_se_ = GaussNewtonStepInStandardErrors(jac, r);
   return true;
+}
+
+double GaussNewtonStepInStandardErrors(const Eigen::Ref<const Eigen::MatrixXd>& jacobian,
+                                       const Eigen::VectorXd& residuals) {
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(jacobian);
+  const Eigen::Index rank = qr.rank();
+  const Eigen::Index freedom = residuals.size() - rank;
+  if (rank == 0 || freedom <= 0) return std::numeric_limits<double>::quiet_NaN();
+  const Eigen::VectorXd rotated = qr.householderQ().adjoint() * residuals;
+  const double explained = rotated.head(rank).squaredNorm();
+  const double left = rotated.tail(freedom).squaredNorm();
+  if (!(left > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  return std::sqrt(explained / (left / static_cast<double>(freedom)));
 }
 
 }  // namespace millkit::identify

@@ -20,6 +20,7 @@
 #include <Eigen/Dense>
 #include <atomic>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -172,13 +173,24 @@ class ProjectedResidual : public ceres::CostFunction {
                     std::vector<int> frozen = {});
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
+  // At the point of the latest evaluation with a Jacobian (Levenberg–Marquardt's current point):
+  // the length of the Gauss–Newton step from it, in standard errors; NaN before the first
+  // Jacobian or when the residuals leave no degree of freedom.
+  double remaining_step_se() const { return remaining_step_se_; }
 
  private:
   const FitModel& model_;
   double step_;
   Derivatives derivatives_;
   std::vector<int> frozen_;
+  mutable double remaining_step_se_ = std::numeric_limits<double>::quiet_NaN();
 };
+
+// The Gauss–Newton step −J⁺r in standard errors: √(‖Q₁ᵀr‖² / s²), Q₁ spanning J's numerical
+// column space (pivoted QR), s² = (‖r‖² − ‖Q₁ᵀr‖²) / (n − rank). NaN without a degree of freedom
+// or when J has no column of rank.
+double GaussNewtonStepInStandardErrors(const Eigen::Ref<const Eigen::MatrixXd>& jacobian,
+                                       const Eigen::VectorXd& residuals);
 
 // Runs task(worker_model, i) for every i in [0, count) on `threads` workers, each with its
 // own copy of `model` (its own stage; the simulation count and progress are shared), and returns

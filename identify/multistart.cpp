@@ -5,6 +5,7 @@
 #include <random>
 
 #include "identify/verdict.h"
+#include "millkit/io/number_format.h"
 
 namespace millkit::identify {
 namespace {
@@ -21,6 +22,33 @@ bool TimingParameter(const FreeParameter& free) {
   const auto kind = free.parameter.kind;
   return kind == Kind::kBacklash || kind == Kind::kGapPosition || kind == Kind::kBiteTime;
 }
+
+// A step that changes the cost (½ χ² in noise units) by less than this is a stall.
+constexpr double kStalledCostChange = 1e-3;
+
+// Ends Levenberg–Marquardt where the Gauss–Newton step still to go from the current point is
+// below options.remaining_step_se standard errors, or below options.rough_step_se after a step
+// that stalled (FitOptions). The current point's Jacobian is the latest one evaluated: Ceres
+// evaluates it at the start and after every accepted step, and only the cost at a rejected one.
+class CloseEnough final : public ceres::IterationCallback {
+ public:
+  CloseEnough(const ProjectedResidual& residual, const FitOptions& options)
+      : residual_(residual), options_(options) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
+    const double left = residual_.remaining_step_se();
+    const bool stalled =
+        summary.iteration > 0 && std::abs(summary.cost_change) <= kStalledCostChange;
+    if ((summary.step_is_successful && left <= options_.remaining_step_se) ||
+        (stalled && left <= options_.rough_step_se)) {
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const ProjectedResidual& residual_;
+  const FitOptions& options_;
+};
 
 }  // namespace
 
@@ -106,7 +134,17 @@ LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<do
   solver.gradient_tolerance = 1e-20;
   solver.num_threads = 1;  // one residual block: the workers are the search's (options.threads)
   solver.logging_type = ceres::SILENT;
+  CloseEnough close_enough(residual, options);
+  if (final_stage && frozen.empty() && options.remaining_step_se > 0.0) {
+    solver.callbacks.push_back(&close_enough);
+  }
   ceres::Solve(solver, &problem, &fit.summary);
+  if (fit.summary.termination_type == ceres::USER_SUCCESS) {
+    // Converged by the statistical test: reported as Ceres' own convergence.
+    fit.summary.termination_type = ceres::CONVERGENCE;
+    fit.summary.message = "the Gauss-Newton step left is below " +
+                          ShortNumber(options.rough_step_se) + " standard errors";
+  }
   fit.u.resize(phi.size());
   for (size_t i = 0; i < phi.size(); ++i) fit.u[i] = ParameterMap::UnitFromAngle(phi[i]);
   fit.usable = fit.summary.IsSolutionUsable() && std::isfinite(fit.summary.final_cost);

@@ -10,6 +10,8 @@
 //     (every parameter within 0.1 standard error of the fit started at the truth), and per
 //     parameter the RMSE over the seeds against the Cramér–Rao bound at the truth, with the
 //     RMSE's own 95 % sampling spread, ±1.96/sqrt(2 seeds) relative.
+//     --no-step-stop fits with FitOptions' statistical stop (remaining_step_se, rough_step_se)
+//     off, for comparison.
 //  2. Convergence from ±50 % starts on the noise-free record (--starts random starts, no scan):
 //     the share that recovers every parameter to 1e-6.
 //  3. SciPy (least_squares over solve_ivp) on the first noisy record, through
@@ -75,10 +77,13 @@ double Seconds(std::chrono::steady_clock::time_point since) {
 int main(int argc, char** argv) {
   int seeds = 100;
   int random_starts = 100;
-  for (int i = 1; i + 1 < argc; i += 2) {
+  bool step_stop = true;
+  for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
-    if (flag == "--seeds") seeds = std::atoi(argv[i + 1]);
-    if (flag == "--starts") random_starts = std::atoi(argv[i + 1]);
+    if (flag == "--no-step-stop") step_stop = false;
+    if (i + 1 >= argc) continue;
+    if (flag == "--seeds") seeds = std::atoi(argv[++i]);
+    if (flag == "--starts") random_starts = std::atoi(argv[++i]);
   }
   FLAGS_minloglevel = 3;  // Ceres' glog: a start that fails to simulate is data, not a message
   Setup setup = LoadSetup();
@@ -117,6 +122,7 @@ int main(int argc, char** argv) {
        {Derivatives::kSensitivity, Derivatives::kForward, Derivatives::kCentral}) {
     FitOptions options;
     options.derivatives = derivatives;
+    if (!step_stop) options.remaining_step_se = options.rough_step_se = 0.0;
     std::vector<double> walls;
     std::vector<long> sims;
     std::vector<double> sum_sq(truth.size(), 0.0);

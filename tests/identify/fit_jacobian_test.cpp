@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <cstdio>
 #include <random>
 
@@ -80,6 +81,58 @@ TEST_CASE("Fits with sensitivities and with forward differences agree", "[sensit
     }
     // Fewer simulations: one run gives every parameter's column.
     CHECK(sensitivity.summary.simulations < forward.summary.simulations);
+  }
+}
+
+// The stopping test's measure (FitOptions::remaining_step_se): on a linear least-squares problem
+// the Gauss–Newton step is the exact one, so its length in standard errors is known directly.
+TEST_CASE("The Gauss-Newton step left is measured in standard errors", "[fit]") {
+  std::mt19937_64 random(5);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const int n = 60;
+  Eigen::MatrixXd j(n, 3);
+  Eigen::VectorXd r(n);
+  for (int i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) j(i, c) = normal(random);
+    r[i] = normal(random);
+  }
+  // The step δ = −J⁺r; its length under the covariance s² (JᵀJ)⁻¹ is √(δᵀJᵀJδ / s²).
+  const Eigen::VectorXd delta = -j.colPivHouseholderQr().solve(r);
+  const Eigen::VectorXd after = r + j * delta;
+  const double s2 = after.squaredNorm() / (n - 3);
+  const double expected = std::sqrt((j * delta).squaredNorm() / s2);
+  CHECK(identify::GaussNewtonStepInStandardErrors(j, r) == Approx(expected).epsilon(1e-10));
+  // Close to the minimum the step shrinks with the distance to it.
+  const Eigen::VectorXd near = after + j * Eigen::Vector3d(1e-3, -2e-3, 5e-4);
+  CHECK(identify::GaussNewtonStepInStandardErrors(j, near) < 0.01 * expected);
+  // A repeated column (an unidentifiable direction) adds no length.
+  Eigen::MatrixXd repeated(n, 4);
+  repeated << j, j.col(1);
+  CHECK(identify::GaussNewtonStepInStandardErrors(repeated, r) == Approx(expected).epsilon(1e-8));
+  // No degree of freedom left: no standard error to measure in.
+  CHECK(std::isnan(identify::GaussNewtonStepInStandardErrors(j.topRows(3), r.head(3))));
+}
+
+// The statistical stop changes no estimate by a visible fraction of its standard error.
+TEST_CASE("Fits with and without the remaining-step stop agree", "[fit]") {
+  for (const unsigned long seed : {4ul, 11ul, 23ul}) {
+    INFO("seed " << seed);
+    const auto line = identify::MakeRandomLineCase(seed);
+    identify::FitOptions options;
+    const auto stopped = identify::Fit(line.prior, line.record, line.config, options);
+    options.remaining_step_se = 0.0;
+    options.rough_step_se = 0.0;
+    const auto full = identify::Fit(line.prior, line.record, line.config, options);
+    REQUIRE(stopped.summary.success);
+    REQUIRE(full.summary.success);
+    CHECK(stopped.summary.verdict == full.summary.verdict);
+    CHECK(std::abs(stopped.summary.cost - full.summary.cost) <= 0.05);
+    REQUIRE(stopped.parameters.size() == full.parameters.size());
+    for (size_t i = 0; i < full.parameters.size(); ++i) {
+      INFO(full.parameters[i].name);
+      CHECK(std::abs(stopped.parameters[i].value - full.parameters[i].value) <=
+            0.2 * full.parameters[i].standard_error);
+    }
   }
 }
 

@@ -63,6 +63,15 @@ struct FitOptions {
   int max_iterations = 100;
   double function_tolerance = 1e-9;
   double parameter_tolerance = 1e-8;
+  // ... or once the Gauss–Newton step still to go from the current point is shorter than
+  // remaining_step_se standard errors (its length under the covariance s² (JᵀJ)⁻¹, s² the
+  // residual variance left after that step), or shorter than rough_step_se after a step that
+  // changed the cost by less than 1e-3 (½ χ²). The misfit of a record with impacts is rough on
+  // the scale of 0.05–0.2 standard errors (the event sequence changes): iterating closer costs
+  // rejected steps and moves no estimate by a visible fraction of its standard error.
+  // remaining_step_se = 0 turns both tests off.
+  double remaining_step_se = 0.02;
+  double rough_step_se = 0.1;
   double derivative_step = 1e-6;  // in unit coordinates (fraction of the bound range)
   // How Levenberg–Marquardt gets its Jacobian while iterating: forward differences in the unit
   // coordinates with derivative_step (the default), central differences, or the exact solver's
