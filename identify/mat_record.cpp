@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "identify/mat_prescan.h"
 #include "millkit/io/input_error.h"
 
 namespace millkit::identify {
@@ -116,6 +117,8 @@ std::vector<Entry> StructFields(matvar_t* s) {
 
 Oscillogram LoadMatRecord(const std::filesystem::path& path, const RecordOptions& options) {
   const std::string source = path.string();
+  // libmatio trusts the sizes the file declares; MillKit checks them first.
+  CheckMatFile(path, source);
   Mat_LogInitFunc("millkit", QuietLog);
   std::unique_ptr<mat_t, FileCloser> file(Mat_Open(source.c_str(), MAT_ACC_RDONLY));
   if (!file) {
