@@ -16,8 +16,8 @@
 # the other tests; the plain build runs them. Likewise the identification fits beyond five
 # representative ones (verdict ok, verdict not_converged, a gap not identifiable, a COMTRADE and
 # a MAT record): each takes 20 to 300 s under the sanitizers (measured on a clean-clone run) and
-# runs the same fit code on another record or option. And the campaign's repeat on 2 threads, and
-# the sensitivities' 200 random-line points.
+# runs the same fit code on another record or option. And the campaign's repeat on 2 threads, the
+# sensitivities' 200 random-line points, and the fits with the statistical stop on and off.
 # Without MPI (MILLKIT_WITH_MPI=OFF): OpenMPI's own allocations at MPI_Init would be reported as
 # leaks, and the MPI code paths are the plain build's (its mpirun tests); here the tests check that
 # a build without MPI refuses to run as several ranks.
@@ -50,4 +50,7 @@ slow+="|a campaign gives the same table and trends on 1 and 2 threads"
 # The sensitivities at 200 random-line points: 59 s under the sanitizers; the bundled scenes'
 # 36 points (57 s) run the same code under every contact law and parameter kind.
 slow+="|Sensitivities agree with central differences at 200 points"
+# Six random-line fits with the statistical stop on and off: 86 s under the sanitizers. Every fit
+# here runs the stop; its measure has its own fast test.
+slow+="|Fits with and without the remaining-step stop agree"
 ctest --output-on-failure -j "$(nproc)" -LE package -E "$slow"

@@ -80,10 +80,17 @@ int main(int argc, char** argv) {
   bool step_stop = true;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
-    if (flag == "--no-step-stop") step_stop = false;
-    if (i + 1 >= argc) continue;
-    if (flag == "--seeds") seeds = std::atoi(argv[++i]);
-    if (flag == "--starts") random_starts = std::atoi(argv[++i]);
+    if (flag == "--no-step-stop") {
+      step_stop = false;
+    } else if (flag == "--seeds" && i + 1 < argc) {
+      seeds = std::atoi(argv[++i]);
+    } else if (flag == "--starts" && i + 1 < argc) {
+      random_starts = std::atoi(argv[++i]);
+    } else {
+      std::fprintf(stderr, "usage: %s [--seeds N (100)] [--starts N (100)] [--no-step-stop]\n",
+                   argv[0]);
+      return 2;
+    }
   }
   FLAGS_minloglevel = 3;  // Ceres' glog: a start that fails to simulate is data, not a message
   Setup setup = LoadSetup();

@@ -86,11 +86,19 @@ int main(int argc, char** argv) {
   int cases = 20;
   int repeats = 5;
   int profile = 0;  // > 0: only this many sensitivity runs of the bundled bite (for a profiler)
-  for (int i = 1; i + 1 < argc; i += 2) {
+  for (int i = 1; i < argc; i += 2) {
     const std::string flag = argv[i];
-    if (flag == "--cases") cases = std::atoi(argv[i + 1]);
-    if (flag == "--repeats") repeats = std::atoi(argv[i + 1]);
-    if (flag == "--profile") profile = std::atoi(argv[i + 1]);
+    if (flag == "--cases" && i + 1 < argc) {
+      cases = std::atoi(argv[i + 1]);
+    } else if (flag == "--repeats" && i + 1 < argc) {
+      repeats = std::atoi(argv[i + 1]);
+    } else if (flag == "--profile" && i + 1 < argc) {
+      profile = std::atoi(argv[i + 1]);
+    } else {
+      std::fprintf(stderr, "usage: %s [--cases N (20)] [--repeats R (5)] [--profile RUNS]\n",
+                   argv[0]);
+      return 2;
+    }
   }
   std::vector<Case> all;
   {

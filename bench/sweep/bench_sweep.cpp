@@ -78,14 +78,19 @@ Timing TimeSweep(const driveline::Scene& scene, const sweep::SweepConfig& config
 int main(int argc, char** argv) {
   const std::string root = MILLKIT_SOURCE_DIR;
   int case_count = 1000, repeats = 5, check = 8;
-  for (int i = 1; i + 1 < argc; i += 2) {
+  for (int i = 1; i < argc; i += 2) {
     const std::string arg = argv[i];
-    if (arg == "--cases")
+    if (arg == "--cases" && i + 1 < argc) {
       case_count = std::atoi(argv[i + 1]);
-    else if (arg == "--repeats")
+    } else if (arg == "--repeats" && i + 1 < argc) {
       repeats = std::atoi(argv[i + 1]);
-    else if (arg == "--check")
+    } else if (arg == "--check" && i + 1 < argc) {
       check = std::atoi(argv[i + 1]);
+    } else {
+      std::fprintf(stderr, "usage: %s [--cases N (1000)] [--repeats R (5)] [--check N (8)]\n",
+                   argv[0]);
+      return 2;
+    }
   }
   const driveline::Scene scene = driveline::LoadScene(root + "/datasets/scenes/mill5_bite.toml");
   const sweep::SweepConfig config =
