@@ -444,7 +444,7 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
         else
           jac.col(i) *= ParameterMap::UnitPerAngle(parameters[0][i]);
       }
-      remaining_step_se_ = GaussNewtonStepInStandardErrors(jac, r);
+      if (measure_step_) remaining_step_se_ = GaussNewtonStepInStandardErrors(jac, r);
       return true;
     }
     // Not available here (a grazing event, a degenerate switch): forward differences.
@@ -485,7 +485,7 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
     }
     jac.col(i) *= ParameterMap::UnitPerAngle(parameters[0][i]);
   }
-  remaining_step_se_ = GaussNewtonStepInStandardErrors(jac, r);
+  if (measure_step_) remaining_step_se_ = GaussNewtonStepInStandardErrors(jac, r);
   return true;
 }
 

@@ -173,9 +173,11 @@ class ProjectedResidual : public ceres::CostFunction {
                     std::vector<int> frozen = {});
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
-  // At the point of the latest evaluation with a Jacobian (Levenberg–Marquardt's current point):
-  // the length of the Gauss–Newton step from it, in standard errors; NaN before the first
-  // Jacobian or when the residuals leave no degree of freedom.
+  // Once asked to (a pivoted QR of every Jacobian, for FitOptions' statistical stop): at the
+  // point of the latest evaluation with a Jacobian (Levenberg–Marquardt's current point), the
+  // length of the Gauss–Newton step from it, in standard errors; NaN before the first Jacobian,
+  // when not asked, or when the residuals leave no degree of freedom.
+  void MeasureRemainingStep() { measure_step_ = true; }
   double remaining_step_se() const { return remaining_step_se_; }
 
  private:
@@ -183,6 +185,7 @@ class ProjectedResidual : public ceres::CostFunction {
   double step_;
   Derivatives derivatives_;
   std::vector<int> frozen_;
+  bool measure_step_ = false;
   mutable double remaining_step_se_ = std::numeric_limits<double>::quiet_NaN();
 };
 

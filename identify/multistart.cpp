@@ -136,6 +136,7 @@ LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<do
   solver.logging_type = ceres::SILENT;
   CloseEnough close_enough(residual, options);
   if (final_stage && frozen.empty() && options.remaining_step_se > 0.0) {
+    residual.MeasureRemainingStep();
     solver.callbacks.push_back(&close_enough);
   }
   ceres::Solve(solver, &problem, &fit.summary);
@@ -143,7 +144,8 @@ LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<do
     // Converged by the statistical test: reported as Ceres' own convergence.
     fit.summary.termination_type = ceres::CONVERGENCE;
     fit.summary.message = "the Gauss-Newton step left is below " +
-                          ShortNumber(options.rough_step_se) + " standard errors";
+                          ShortNumber(options.remaining_step_se) + " standard errors (" +
+                          ShortNumber(options.rough_step_se) + " after a stalled step)";
   }
   fit.u.resize(phi.size());
   for (size_t i = 0; i < phi.size(); ++i) fit.u[i] = ParameterMap::UnitFromAngle(phi[i]);
