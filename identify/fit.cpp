@@ -133,12 +133,27 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
       throw InputError(record.source + ": record time " + std::to_string(record.time_s[first]) +
                        " s lies before the time origin " + std::to_string(origin_s) + " s");
     }
-    options.output_times = times;
+    // The channels' links: the plain run streams only their torques (no sample matrices).
+    std::vector<int> links;
+    for (const auto& channel : channels) {
+      if (std::find(links.begin(), links.end(), channel.link_index) == links.end()) {
+        links.push_back(channel.link_index);
+      }
+    }
+    std::vector<std::vector<double>> link_signal(links.size(), std::vector<double>(times.size()));
+    const size_t samples = times.size();
+    options.output_times = std::move(times);
     driveline::SensitivityResult sensitivities;
     if (derivatives != nullptr) {
       sensitivities = driveline::SimulateWithSensitivities(run, parameters, options);
       *unavailable = sensitivities.unavailable;
     } else {
+      options.keep_samples = false;
+      options.sample_sink = [&](const driveline::OutputSample& sample) {
+        for (size_t i = 0; i < links.size(); ++i) {
+          link_signal[i][sample.index] = sample.link_torque_Nm[links[i]];
+        }
+      };
       sensitivities.simulation = driveline::Simulate(driveline::Model(std::move(run)), options);
     }
     const auto& result = sensitivities.simulation;
@@ -146,25 +161,33 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
       *why = result.summary.message;
       return false;
     }
+    const std::vector<double>& time = *options.output_times;
+    if (derivatives != nullptr) {
+      for (size_t i = 0; i < links.size(); ++i) {
+        for (size_t j = 0; j < samples; ++j) {
+          link_signal[i][j] = result.link_torque_Nm(static_cast<Eigen::Index>(j), links[i]);
+        }
+      }
+    }
     const bool with_derivatives = derivatives != nullptr && unavailable->empty();
     const int count = static_cast<int>(parameters.size());
     torques->resize(channels.size());
     if (with_derivatives) derivatives->resize(channels.size());
-    std::vector<double> signal(times.size());
-    // The samples of one channel's link torque (or of its derivative over parameter j), through
-    // the channel's recorder filter (linear), at the record steps in [begin, end).
-    const auto sample = [&](const ChannelSpec& channel, const Eigen::MatrixXd& matrix,
-                            Eigen::Ref<Eigen::VectorXd> out) {
-      const auto column = matrix.col(channel.link_index);
-      for (size_t j = 0; j < times.size(); ++j) signal[j] = column(static_cast<int>(j));
-      FirstOrderLowPass(channel.lowpass_Hz, times, &signal);
+    std::vector<double> signal(samples);
+    // A signal through the channel's recorder filter (linear between the samples), at the
+    // record steps in [begin, end).
+    const auto filter = [&](const ChannelSpec& channel, Eigen::Ref<Eigen::VectorXd> out) {
+      FirstOrderLowPass(channel.lowpass_Hz, time, &signal);
       for (int k = begin; k < end; ++k)
         out(k - begin) = signal[static_cast<size_t>(k - first) * stride];
     };
     for (size_t c = 0; c < channels.size(); ++c) {
+      const size_t link =
+          std::find(links.begin(), links.end(), channels[c].link_index) - links.begin();
       auto& out = (*torques)[c];
       out.resize(end - begin);
-      sample(channels[c], result.link_torque_Nm, out);
+      signal = link_signal[link];
+      filter(channels[c], out);
       if (!out.allFinite()) {
         *why = "non-finite torque";
         return false;
@@ -172,8 +195,11 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
       if (!with_derivatives) continue;
       auto& derivative = (*derivatives)[c];
       derivative.resize(end - begin, count);
-      for (int j = 0; j < count; ++j)
-        sample(channels[c], sensitivities.link_torque[j], derivative.col(j));
+      for (int j = 0; j < count; ++j) {
+        const auto column = sensitivities.link_torque[j].col(channels[c].link_index);
+        for (size_t k = 0; k < samples; ++k) signal[k] = column(static_cast<Eigen::Index>(k));
+        filter(channels[c], derivative.col(j));
+      }
     }
     return true;
   } catch (const InputError& error) {
