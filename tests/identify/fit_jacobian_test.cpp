@@ -11,7 +11,11 @@
 #include <random>
 
 #include "identify/random_line.h"
+#include "millkit/driveline/scene.h"
 #include "millkit/identify/fit.h"
+#include "millkit/identify/fit_config.h"
+#include "millkit/identify/oscillogram.h"
+#include "support/run_cli.h"
 
 namespace millkit {
 
@@ -57,6 +61,41 @@ TEST_CASE("The fit's projected Jacobian from sensitivities agrees with central d
   CHECK(compared >= 30);
   std::printf("projected Jacobian: %d columns, worst difference %.3g of the column's size\n",
               compared, worst);
+}
+
+// A plain run streams only the channels' link torques; a run with sensitivities keeps every
+// sample. Both go through the recorder filter of the bundled record's channels: the same
+// channel samples, bit for bit.
+TEST_CASE("A fit's plain and sensitivity runs give the same channel samples", "[sensitivity]") {
+  const auto scene = driveline::LoadScene(testing::SourcePath("datasets/scenes/mill5_bite.toml"));
+  const auto record =
+      identify::LoadOscillogram(testing::SourcePath("datasets/records/mill5_two_spindles.csv"));
+  const auto config = identify::LoadFitConfig(
+      testing::SourcePath("datasets/records/mill5_two_spindles.fit.toml"), record, scene);
+  REQUIRE(std::all_of(config.channels.begin(), config.channels.end(),
+                      [](const identify::ChannelSpec& c) { return c.lowpass_Hz > 0.0; }));
+  const int end = static_cast<int>(
+      std::upper_bound(record.time_s.begin(), record.time_s.end(), 0.3) - record.time_s.begin());
+  std::vector<driveline::SceneParameter> parameters;
+  for (const auto& free : config.free) parameters.push_back(free.parameter);
+  // A window that starts after the record: the filter still runs from the record's start.
+  for (const int begin : {0, 100}) {
+    std::vector<Eigen::VectorXd> plain, kept;
+    std::vector<Eigen::MatrixXd> derivatives;
+    std::string why, unavailable;
+    REQUIRE(
+        identify::SimulateChannels(scene, record, 0.0, config.channels, begin, end, &plain, &why));
+    REQUIRE(identify::SimulateChannels(scene, record, 0.0, config.channels, begin, end, &kept, &why,
+                                       parameters, &derivatives, &unavailable));
+    CHECK(unavailable.empty());
+    REQUIRE(plain.size() == config.channels.size());
+    REQUIRE(kept.size() == plain.size());
+    for (size_t c = 0; c < plain.size(); ++c) {
+      CHECK(plain[c].size() == end - begin);
+      CHECK(plain[c] == kept[c]);
+      CHECK(plain[c].cwiseAbs().maxCoeff() > 1e4);  // N·m: the bite is in the window
+    }
+  }
 }
 
 // A fit iterated with sensitivities and one with forward differences reach the same minimum:
