@@ -145,7 +145,7 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
     options.output_times = std::move(times);
     driveline::SensitivityResult sensitivities;
     if (derivatives != nullptr) {
-      sensitivities = driveline::SimulateWithSensitivities(run, parameters, options);
+      sensitivities = driveline::SimulateWithSensitivities(run, parameters, options, links);
       *unavailable = sensitivities.unavailable;
     } else {
       options.keep_samples = false;
@@ -196,7 +196,7 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
       auto& derivative = (*derivatives)[c];
       derivative.resize(end - begin, count);
       for (int j = 0; j < count; ++j) {
-        const auto column = sensitivities.link_torque[j].col(channels[c].link_index);
+        const auto column = sensitivities.link_torque[j].col(static_cast<Eigen::Index>(link));
         for (size_t k = 0; k < samples; ++k) signal[k] = column(static_cast<Eigen::Index>(k));
         filter(channels[c], derivative.col(j));
       }

@@ -12,7 +12,6 @@
 #include <limits>
 #include <map>
 #include <memory>
-#include <unsupported/Eigen/MatrixFunctions>
 
 #include "driveline/hybrid_driver.h"
 #include "millkit/io/input_error.h"
@@ -38,14 +37,27 @@ struct Stencil {
   std::vector<double> weights;
 };
 
-Stencil StencilFor(double value, double step, const ParameterRange& range) {
-  const bool below = value - 2.0 * step < range.lower ||
-                     (!range.lower_inclusive && value - 2.0 * step <= range.lower);
-  const bool above = value + 2.0 * step > range.upper;
-  if (!below && !above) return {{-2, -1, 1, 2}, {1.0 / 12, -8.0 / 12, 8.0 / 12, -1.0 / 12}};
+// A model's coefficients (M, G, T, z(0), the forcing) are linear in a damping, a backlash, a gap
+// position, a load and the bite time: two points give their derivative to roundoff. They are not
+// linear in a stiffness (the static twists T/c) or an inertia (1/J): four points, error ≈ δ⁴.
+bool CoefficientsLinearIn(SceneParameter::Kind kind) {
+  using Kind = SceneParameter::Kind;
+  return kind != Kind::kStiffness && kind != Kind::kInertia;
+}
+
+Stencil StencilFor(double value, double step, const ParameterRange& range, bool linear) {
+  const double reach = (linear ? 1.0 : 2.0) * step;
+  const bool below =
+      value - reach < range.lower || (!range.lower_inclusive && value - reach <= range.lower);
+  const bool above = value + reach > range.upper;
+  if (!below && !above) {
+    if (linear) return {{-1, 1}, {-0.5, 0.5}};
+    return {{-2, -1, 1, 2}, {1.0 / 12, -8.0 / 12, 8.0 / 12, -1.0 / 12}};
+  }
   const double side = below ? 1.0 : -1.0;
-  Stencil stencil{{0, side, 2 * side, 3 * side, 4 * side},
-                  {-25.0 / 12, 48.0 / 12, -36.0 / 12, 16.0 / 12, -3.0 / 12}};
+  Stencil stencil = linear ? Stencil{{0, side}, {-1.0, 1.0}}
+                           : Stencil{{0, side, 2 * side, 3 * side, 4 * side},
+                                     {-25.0 / 12, 48.0 / 12, -36.0 / 12, 16.0 / 12, -3.0 / 12}};
   for (double& w : stencil.weights) w *= side;
   return stencil;
 }
@@ -116,7 +128,7 @@ struct PhaseSet {
   std::vector<Eigen::MatrixXd> m_p;  // M̃_j (empty when M_j = 0)
   std::vector<Entry> sparse_p;       // the non-zeros of every M̃_j: row i P + j
   Eigen::MatrixXd torque;            // T: reduced link torques = T z
-  Eigen::MatrixXd torque_scaled;     // T D, per link factor: the scene links' torques of ỹ
+  Eigen::MatrixXd torque_scaled;     // T D, per link factor: the recorded links' torques of ỹ
   Eigen::MatrixXd torque_p;          // T_j per link factor, stacked (row j links + l); built on
   bool has_torque_p = false;         // the first output in the phase set
   double norm = 0.0;  // ‖[M̃ M̃_j; 0 M̃]‖∞ <= ‖M̃‖∞ + max ‖M̃_j‖∞
@@ -134,19 +146,24 @@ using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::R
 class SensitivityPass final : public HybridObserver {
  public:
   SensitivityPass(const Model& model, std::vector<ParameterModels> parameters,
-                  const Eigen::VectorXd& scale, double step, int samples, bool given_state)
+                  const Eigen::VectorXd& scale, double step, int samples, bool given_state,
+                  std::vector<int> links)
       : model_(model),
         parameters_(std::move(parameters)),
         d_(scale),
         d_inverse_(scale.cwiseInverse()),
         h_(step),
         n_(model.augmented_size()),
+        nx_(model.state_size()),
         p_(static_cast<Eigen::Index>(parameters_.size())),
-        given_state_(given_state) {
-    const int links = static_cast<int>(model.scene().links.size());
-    out_.assign(p_, Eigen::MatrixXd::Zero(samples, links));
-    link_inverse_.resize(links);
-    for (int l = 0; l < links; ++l) link_inverse_[l] = 1.0 / model.shaft_factors().link[l];
+        given_state_(given_state),
+        links_(std::move(links)) {
+    const int links_out = static_cast<int>(links_.size());
+    out_.assign(p_, Eigen::MatrixXd::Zero(samples, links_out));
+    link_inverse_.resize(links_out);
+    for (int l = 0; l < links_out; ++l) {
+      link_inverse_[l] = 1.0 / model.shaft_factors().link[links_[l]];
+    }
     surfaces_p_.resize(p_);
     for (int j = 0; j < p_; ++j) {
       surfaces_p_[j] = parameters_[j].Derivative(
@@ -252,13 +269,14 @@ class SensitivityPass final : public HybridObserver {
   void Recorded(int k, const Phases& phases) override {
     if (!unavailable_.empty()) return;
     PhaseSet& data = Data(phases);
-    const Eigen::Index links = data.torque.rows();
+    const auto links = static_cast<Eigen::Index>(links_.size());
     if (!data.has_torque_p) {
       data.torque_p.resize(links * p_, n_);
       for (int j = 0; j < p_; ++j) {
         data.torque_p.middleRows(j * links, links) =
             link_inverse_.asDiagonal() * parameters_[j].Derivative(model_, [&](const Model& m) {
-              return m.LinkTorqueRows(phases, m.SystemMatrix(phases));
+              return Eigen::MatrixXd(
+                  m.LinkTorqueRows(phases, m.SystemMatrix(phases))(links_, Eigen::all));
             });
       }
       data.has_torque_p = true;
@@ -312,30 +330,89 @@ class SensitivityPass final : public HybridObserver {
     }
     data.norm += largest_p;
     data.torque = model_.LinkTorqueRows(phases, data.m);
-    data.torque_scaled = link_inverse_.asDiagonal() * data.torque * d_.asDiagonal();
+    data.torque_scaled =
+        link_inverse_.asDiagonal() * data.torque(links_, Eigen::all) * d_.asDiagonal();
     current_ = &data;
     return data;
   }
 
-  // exp(M̃ τ) and F̃_j(τ) (stacked) by the matrix exponential of [M̃ M̃_j; 0 M̃] τ.
+  // exp(M̃ τ) and F̃_j(τ) (stacked), the blocks of exp([M̃ M̃_j; 0 M̃] τ), for every j at once:
+  // one Taylor series over σ = τ / 2^s with θ = ‖[M̃ M̃_j; 0 M̃]‖∞ σ <= 1/2, on the non-zeros of
+  // M̃ and M̃_j,
+  //   A_k = (σ/k) M̃ A_{k−1},  B_{j,k} = (σ/k) (M̃ B_{j,k−1} + M̃_j A_{k−1}),  A_0 = I, B_{j,0} = 0,
+  // E = Σ A_k, F_j = Σ B_{j,k} (the top right block of the k-th power is Σ_i M̃^i M̃_j M̃^(k−1−i)),
+  // then s squarings of the block matrix: F_j ← E F_j + F_j E, E ← E².
   void Exponentials(const PhaseSet& data, double tau, Eigen::MatrixXd* e,
                     Eigen::MatrixXd* f) const {
-    *e = (data.m_scaled * tau).exp();
-    f->setZero(n_ * p_, n_);
-    Eigen::MatrixXd block = Eigen::MatrixXd::Zero(2 * n_, 2 * n_);
-    block.topLeftCorner(n_, n_) = data.m_scaled * tau;
-    block.bottomRightCorner(n_, n_) = data.m_scaled * tau;
+    const double norm = data.norm * tau;
+    const int squarings =
+        norm > 0.5 && std::isfinite(norm) ? static_cast<int>(std::ceil(std::log2(norm / 0.5))) : 0;
+    const double sigma = std::ldexp(tau, -squarings);
+    const double theta = data.norm * sigma;
+    std::vector<int> moved;                   // the parameters with M̃_j ≠ 0
+    std::vector<std::vector<Entry>> entries;  // the non-zeros of each such M̃_j
     for (int j = 0; j < p_; ++j) {
       if (data.m_p[j].size() == 0) continue;
-      block.topRightCorner(n_, n_) = data.m_p[j] * tau;
-      (*f)(Eigen::seqN(j, n_, p_), Eigen::all) = block.exp().topRightCorner(n_, n_);
+      moved.push_back(j);
+      entries.emplace_back();
+      for (int c = 0; c < n_; ++c) {
+        for (int i = 0; i < n_; ++i) {
+          if (data.m_p[j](i, c) != 0.0) entries.back().push_back({i, c, data.m_p[j](i, c)});
+        }
+      }
     }
+    const size_t count = moved.size();
+    // Row-major: a non-zero (i, c) adds a multiple of row c to row i.
+    RowMatrix a = RowMatrix::Identity(n_, n_), next_a(n_, n_);
+    RowMatrix sum_a = a;
+    std::vector<RowMatrix> b(count, RowMatrix::Zero(n_, n_)), sum_b = b;
+    RowMatrix next_b(n_, n_);
+    double bound = 1.0;
+    for (int k = 1; k <= kMaxTaylorTerms; ++k) {
+      const double factor = sigma / k;
+      for (size_t m = 0; m < count; ++m) {
+        next_b.setZero();
+        for (const Entry& entry : data.sparse) {
+          next_b.row(entry.row) += (factor * entry.value) * b[m].row(entry.col);
+        }
+        for (const Entry& entry : entries[m]) {
+          next_b.row(entry.row) += (factor * entry.value) * a.row(entry.col);
+        }
+        b[m].swap(next_b);
+        sum_b[m] += b[m];
+      }
+      next_a.setZero();
+      for (const Entry& entry : data.sparse) {
+        next_a.row(entry.row) += (factor * entry.value) * a.row(entry.col);
+      }
+      a.swap(next_a);
+      sum_a += a;
+      bound *= theta / k;
+      if (bound * theta / (k + 1) <= 0.25 * kEps) break;
+    }
+    for (int q = 0; q < squarings; ++q) {
+      for (size_t m = 0; m < count; ++m) {
+        next_b.noalias() = sum_a * sum_b[m];
+        next_b.noalias() += sum_b[m] * sum_a;
+        sum_b[m].swap(next_b);
+      }
+      next_a.noalias() = sum_a * sum_a;
+      sum_a.swap(next_a);
+    }
+    *e = sum_a;
+    f->setZero(n_ * p_, n_);
+    for (size_t m = 0; m < count; ++m) (*f)(Eigen::seqN(moved[m], n_, p_), Eigen::all) = sum_b[m];
   }
 
-  // S̃ ← E S̃ + [F̃_j ỹ]: the propagators applied.
+  // S̃ ← E S̃ + [F̃_j ỹ]: the propagators applied. The inputs depend neither on the state nor
+  // on the parameters within a leg, so E's input rows are [0 E_ww] and F̃_j's are zero: only the
+  // state rows take the full products (n × n by n × P and nP × n by n, the floor of the pass).
   void Apply(const Eigen::MatrixXd& e, const Eigen::MatrixXd& f) {
-    s_next_.noalias() = e * s_;
-    Eigen::Map<Eigen::VectorXd>(s_next_.data(), n_ * p_).noalias() += f * y_;
+    const Eigen::Index inputs = n_ - nx_;
+    s_next_.topRows(nx_).noalias() = e.topRows(nx_).lazyProduct(s_);
+    s_next_.bottomRows(inputs).noalias() =
+        e.bottomRightCorner(inputs, inputs).lazyProduct(s_.bottomRows(inputs));
+    Eigen::Map<Eigen::VectorXd>(s_next_.data(), nx_ * p_).noalias() += f.topRows(nx_ * p_) * y_;
     s_.swap(s_next_);
   }
 
@@ -406,14 +483,15 @@ class SensitivityPass final : public HybridObserver {
   std::vector<ParameterModels> parameters_;
   Eigen::VectorXd d_, d_inverse_;
   double h_;
-  Eigen::Index n_, p_;  // augmented size, parameters
+  Eigen::Index n_, nx_, p_;  // augmented size, state size, parameters
   bool given_state_;
   std::vector<Eigen::MatrixXd> surfaces_p_;  // G_j (unscaled)
   std::map<Phases, PhaseSet> cache_;
   PhaseSet* current_ = nullptr;   // the phase set of the latest leg
   RowMatrix s_;                   // S̃
   Eigen::VectorXd z_;             // the state at the latest stop
-  Eigen::VectorXd link_inverse_;  // 1 / each scene link's shaft factor
+  std::vector<int> links_;        // the scene links whose torques' sensitivities are recorded
+  Eigen::VectorXd link_inverse_;  // 1 / each such link's shaft factor
   // Scratch of Propagate and Recorded.
   Eigen::VectorXd y_, y_term_, y_next_, stacked_scratch_;
   RowMatrix s_term_, s_next_;
@@ -426,8 +504,21 @@ class SensitivityPass final : public HybridObserver {
 
 SensitivityResult SimulateWithSensitivities(const Scene& scene,
                                             const std::vector<SceneParameter>& parameters,
-                                            const SimulationOptions& options) {
+                                            const SimulationOptions& options,
+                                            const std::vector<int>& links) {
   SensitivityResult result;
+  const int scene_links = static_cast<int>(scene.links.size());
+  for (const int l : links) {
+    if (l < 0 || l >= scene_links) {
+      throw InputError("SimulateWithSensitivities: link index " + std::to_string(l) +
+                       " is not one of the scene's " + std::to_string(scene_links) + " links");
+    }
+  }
+  std::vector<int> recorded = links;
+  if (recorded.empty()) {
+    recorded.resize(scene_links);
+    for (int l = 0; l < scene_links; ++l) recorded[l] = l;
+  }
   SimulationOptions run = options;
   run.solver = SolverKind::kExact;
   run.keep_samples = true;
@@ -443,7 +534,8 @@ SensitivityResult SimulateWithSensitivities(const Scene& scene,
     entry.magnitude = Magnitude(parameter, scene, value);
     entry.step = kRelativeStep * entry.magnitude;
     entry.bite_time = parameter.kind == SceneParameter::Kind::kBiteTime;
-    entry.stencil = StencilFor(value, entry.step, PhysicalRange(parameter.kind));
+    entry.stencil = StencilFor(value, entry.step, PhysicalRange(parameter.kind),
+                               CoefficientsLinearIn(parameter.kind));
     for (const double offset : entry.stencil.offsets) {
       if (offset == 0.0) {
         entry.models.push_back(nullptr);
@@ -476,7 +568,7 @@ SensitivityResult SimulateWithSensitivities(const Scene& scene,
   const double step = ExactStepLength(model, run);
   const int samples = OutputGrid(model.reduced_scene(), run).size();
   SensitivityPass pass(model, std::move(models), ExactScale(model, step), step, samples,
-                       run.initial_state.has_value());
+                       run.initial_state.has_value(), std::move(recorded));
   result.simulation =
       RunHybrid(model, run, SolverOf(SolverKind::kExact).name, integrator.get(), &pass);
   if (!result.simulation.summary.success) {

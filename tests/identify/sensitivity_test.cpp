@@ -11,6 +11,7 @@
 #include <string>
 
 #include "identify/random_line.h"
+#include "millkit/io/input_error.h"
 
 namespace millkit {
 namespace {
@@ -235,6 +236,32 @@ TEST_CASE("Sensitivities agree with central differences on the bundled scenes", 
   tally.Print("bundled scenes");
   CHECK(tally.points >= 30);
   CHECK(tally.noisy <= tally.compared / 10);
+}
+
+// Asking for some links records those links' columns, in the order asked, bit for bit the same
+// as with every link; a link the scene does not have is an input error.
+TEST_CASE("Sensitivities of chosen links are those links' columns", "[sensitivity]") {
+  const auto scene =
+      driveline::LoadScene(std::string(MILLKIT_SOURCE_DIR) + "/datasets/scenes/mill5_bite.toml");
+  const auto parameters = ParametersOf(scene);
+  driveline::SimulationOptions options;
+  options.estimate_error = false;
+  const auto all = driveline::SimulateWithSensitivities(scene, parameters, options);
+  REQUIRE(all.unavailable.empty());
+  const std::vector<int> chosen{3, 1};
+  const auto some = driveline::SimulateWithSensitivities(scene, parameters, options, chosen);
+  REQUIRE(some.unavailable.empty());
+  REQUIRE(some.link_torque.size() == parameters.size());
+  for (size_t j = 0; j < parameters.size(); ++j) {
+    REQUIRE(some.link_torque[j].cols() == 2);
+    for (int i = 0; i < 2; ++i)
+      CHECK(some.link_torque[j].col(i) == all.link_torque[j].col(chosen[i]));
+  }
+  CHECK(some.simulation.link_torque_Nm == all.simulation.link_torque_Nm);
+  CHECK_THROWS_AS(driveline::SimulateWithSensitivities(scene, parameters, options, {5}),
+                  InputError);
+  CHECK_THROWS_AS(driveline::SimulateWithSensitivities(scene, parameters, options, {-1}),
+                  InputError);
 }
 
 }  // namespace

@@ -15,11 +15,12 @@
 // (−slope for the bite time, which shifts every breakpoint), and for the bite time the state part
 // jumps by (z'⁻ − z'⁺). The link torques are T z per phase set, so their sensitivities are
 // T s_j + T_j z.
-// The model's coefficient derivatives M_j, G_j, T_j and ∂z(0)/∂p_j are taken by a fourth-order
-// stencil on models built at p_j ± δ, ± 2δ (δ = 1e-3 of the parameter's magnitude; one-sided at
-// a physical bound): they are linear in every parameter but the inertias and stiffnesses (through
-// 1/J and the static twists), and the stencil's error is ≈ 1e-12 relative. Nothing is differenced
-// through time or through the events.
+// The model's coefficient derivatives M_j, G_j, T_j and ∂z(0)/∂p_j are taken by a stencil on
+// models built at p_j ± δ (δ = 1e-3 of the parameter's magnitude; one-sided at a physical bound):
+// they are linear in every parameter but the inertias and stiffnesses, so two points give them
+// to roundoff; those two (through 1/J and the static twists) take the fourth-order stencil at
+// ± δ, ± 2δ, whose error is ≈ 1e-12 relative. Nothing is differenced through time or through
+// the events.
 #pragma once
 
 #include <Eigen/Dense>
@@ -33,8 +34,9 @@ namespace millkit::driveline {
 
 struct SensitivityResult {
   SimulationResult simulation;  // the exact solver's run, as Simulate returns it
-  // link_torque[j](k, l): ∂(torque of scene link l at output sample k)/∂(parameter j), in the
-  // link's N·m per the parameter's unit. Empty when `unavailable` is set.
+  // link_torque[j](k, i): ∂(torque of link i at output sample k)/∂(parameter j), in the
+  // link's N·m per the parameter's unit; link i is the i-th of the links asked for (every
+  // scene link, in order, by default). Empty when `unavailable` is set.
   std::vector<Eigen::MatrixXd> link_torque;
   // Why the sensitivities could not be computed, or empty: the run failed, it escaped a
   // degenerate switch, an event grazed its surface (the event sequence is not locally constant),
@@ -46,8 +48,11 @@ struct SensitivityResult {
 // Runs the exact solver on `scene` (options.solver is ignored; samples are kept, no sample sink)
 // and the sensitivities of the link torques to `parameters`. Throws InputError for an invalid
 // scene or options, as Simulate does.
+// `links`: the scene links (indices) whose torques' sensitivities are recorded; empty: all. A
+// fit asks for its channels' links only (the recording costs links × n × P per sample).
 SensitivityResult SimulateWithSensitivities(const Scene& scene,
                                             const std::vector<SceneParameter>& parameters,
-                                            const SimulationOptions& options);
+                                            const SimulationOptions& options,
+                                            const std::vector<int>& links = {});
 
 }  // namespace millkit::driveline
