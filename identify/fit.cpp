@@ -349,8 +349,8 @@ std::vector<double> CramerRaoBound(const driveline::Scene& scene, const Oscillog
   }
   Eigen::VectorXd r;
   Eigen::MatrixXd jac;
-  if (!model.FullJacobian(u, std::vector<Nuisance>(model.blocks()), options.derivative_step, &r,
-                          &jac)) {
+  if (!model.FullJacobian(u, std::vector<Nuisance>(model.blocks()), options.derivative_step,
+                          options.derivatives, &r, &jac)) {
     throw InputError("Cramér–Rao bound: the scene does not simulate: " + model.last_failure());
   }
   const auto fitted = model.FittedIndices();
@@ -389,7 +389,7 @@ bool DescribeBest(const FitModel& model, const Search& search, const RecordAsses
   std::vector<Eigen::VectorXd> m;
   Eigen::MatrixXd jac;
   if (!model.ProjectedResiduals(u.data(), &r, &nuisance, &m) ||
-      !model.FullJacobian(u, nuisance, options.derivative_step, &r, &jac)) {
+      !model.FullJacobian(u, nuisance, options.derivative_step, options.derivatives, &r, &jac)) {
     return false;
   }
   const auto fitted = model.FittedIndices();

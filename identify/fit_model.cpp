@@ -344,9 +344,16 @@ double FitModel::ProjectedCost(const double* u) const {
 }
 
 bool FitModel::FullJacobian(const std::vector<double>& u, const std::vector<Nuisance>& nuisance,
-                            double step, Eigen::VectorXd* r, Eigen::MatrixXd* jacobian) const {
+                            double step, Derivatives derivatives, Eigen::VectorXd* r,
+                            Eigen::MatrixXd* jacobian) const {
   std::vector<Eigen::VectorXd> m;
-  if (!Torques(u.data(), &m)) return false;
+  std::vector<Eigen::MatrixXd> dm;
+  bool exact = false;  // the scene columns from the sensitivities
+  if (derivatives == Derivatives::kSensitivity) {
+    if (!TorquesWithDerivatives(u.data(), &m, &dm, &exact, {})) return false;
+  } else if (!Torques(u.data(), &m)) {
+    return false;
+  }
   r->resize(residuals_);
   for (int b = 0; b < blocks(); ++b) BlockResiduals(b, m[b], nuisance[b], r->data());
   auto& jac = *jacobian;
@@ -356,7 +363,11 @@ bool FitModel::FullJacobian(const std::vector<double>& u, const std::vector<Nuis
     const int n = static_cast<int>(block.measured.size());
     jac.block(block.offset, gain_index(b), n, 1) = block.weight * m[b];
     jac.block(block.offset, offset_index(b), n, 1).setConstant(block.weight * block.scale);
+    if (exact) {
+      jac.block(block.offset, 0, n, parameters()) = block.weight * nuisance[b].gain * dm[b];
+    }
   }
+  if (exact) return true;
   std::vector<double> probe = u;
   std::vector<Eigen::VectorXd> m1, m2;
   for (int i = 0; i < parameters(); ++i) {

@@ -135,11 +135,14 @@ class FitModel {
   // ½ Σ r² of the projected residuals; +inf when a simulation fails.
   double ProjectedCost(const double* u) const;
 
-  // Jacobian of the full (unprojected) residual over θ at u and the nuisance, by central
-  // differences of the scene parameters (second-order one-sided at a bound) with normalised
-  // step h, analytic in the gains and offsets. False when a simulation fails.
+  // Jacobian of the full (unprojected) residual over θ at u and the nuisance, analytic in the
+  // gains and offsets. The scene parameters' columns: with Derivatives::kSensitivity from the
+  // exact solver's sensitivities where they are available, else (and for the other kinds) by
+  // central differences (second-order one-sided at a bound) with normalised step h. False when a
+  // simulation fails.
   bool FullJacobian(const std::vector<double>& u, const std::vector<Nuisance>& nuisance,
-                    double step, Eigen::VectorXd* r, Eigen::MatrixXd* jacobian) const;
+                    double step, Derivatives derivatives, Eigen::VectorXd* r,
+                    Eigen::MatrixXd* jacobian) const;
 
  private:
   int StageEnd(const Block& b, double divisor) const;

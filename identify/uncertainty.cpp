@@ -122,7 +122,8 @@ std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vec
   std::vector<Nuisance> nuisance;
   Eigen::MatrixXd jacobian;
   if (options.hops < 1 || !model.ProjectedResiduals(u.data(), &r, &nuisance) ||
-      !model.FullJacobian(u, nuisance, options.derivative_step, &r, &jacobian)) {
+      !model.FullJacobian(u, nuisance, options.derivative_step, options.derivatives, &r,
+                          &jacobian)) {
     return points;
   }
   const std::vector<int> fitted = model.FittedIndices();

@@ -63,6 +63,52 @@ TEST_CASE("The fit's projected Jacobian from sensitivities agrees with central d
               compared, worst);
 }
 
+// The covariance's Jacobian (gains and offsets analytic, scene parameters from the
+// sensitivities) against the one from central differences, at random points of random lines:
+// the same residuals, the same gain and offset columns, the scene columns within the
+// differences' own error.
+TEST_CASE("The covariance's Jacobian from sensitivities agrees with central differences",
+          "[sensitivity]") {
+  std::mt19937_64 random(23);
+  int compared = 0, differing = 0;
+  for (unsigned long seed = 50; seed < 58; ++seed) {
+    const auto line = identify::MakeRandomLineCase(seed);
+    const std::vector<double> weights(line.config.channels.size(), 1.0);
+    const std::vector<identify::Oscillogram> records{line.record};
+    const identify::FitModel model(line.prior, records, line.config, weights);
+    std::vector<double> u(model.parameters());
+    for (double& value : u) value = std::uniform_real_distribution<double>(0.2, 0.8)(random);
+    Eigen::VectorXd r;
+    std::vector<identify::Nuisance> nuisance;
+    if (!model.ProjectedResiduals(u.data(), &r, &nuisance)) continue;
+    Eigen::VectorXd r_exact, r_central;
+    Eigen::MatrixXd exact, central;
+    REQUIRE(model.FullJacobian(u, nuisance, 1e-6, identify::Derivatives::kSensitivity, &r_exact,
+                               &exact));
+    REQUIRE(model.FullJacobian(u, nuisance, 1e-6, identify::Derivatives::kCentral, &r_central,
+                               &central));
+    CHECK(r_exact == r_central);
+    REQUIRE(exact.cols() == central.cols());
+    const double largest = central.cwiseAbs().maxCoeff();
+    for (Eigen::Index j = 0; j < central.cols(); ++j) {
+      INFO("seed " << seed << " column " << j);
+      const double size = central.col(j).cwiseAbs().maxCoeff();
+      const double difference = (exact.col(j) - central.col(j)).cwiseAbs().maxCoeff();
+      if (j >= model.parameters()) {
+        CHECK(difference == 0.0);  // gains and offsets: the same analytic columns
+        continue;
+      }
+      // Central differences at 1e-6 of the unit range: roundoff ≈ 1e-10 / 1e-6 of the
+      // residuals, as in the projected Jacobian's test.
+      CHECK(difference <= 1e-5 * size + 1e-6 * largest);
+      ++compared;
+      if (difference > 0.0) ++differing;  // not the differences themselves
+    }
+  }
+  CHECK(compared >= 20);
+  CHECK(differing == compared);
+}
+
 // A plain run streams only the channels' link torques; a run with sensitivities keeps every
 // sample. Both go through the recorder filter of the bundled record's channels: the same
 // channel samples, bit for bit.

@@ -19,9 +19,9 @@
 // solved in closed form at each point (variable projection); the timing of the best points fitted
 // on that window; Levenberg–Marquardt from the best distinct ones through a fine continuation
 // over the window length and directly on the whole window; one escalated search when the best
-// minimum misfits; basin hops and axis probes around the best. Derivatives while iterating: forward
-// differences of the exact solver, or its forward sensitivities through the events
-// (FitOptions::derivatives); central differences for the covariance.
+// minimum misfits; basin hops and axis probes around the best. Derivatives, while iterating and
+// for the covariance: the exact solver's forward sensitivities through the events, or finite
+// differences (FitOptions::derivatives).
 //
 // Uncertainty: the covariance of every fitted quantity from the noise-weighted Jacobian,
 // scaled by the residual variance 2·cost/(N − P) (the report says so); where the cost along a
@@ -73,14 +73,15 @@ struct FitOptions {
   double remaining_step_se = 0.02;
   double rough_step_se = 0.1;
   double derivative_step = 1e-6;  // in unit coordinates (fraction of the bound range)
-  // How Levenberg–Marquardt gets its Jacobian while iterating: forward differences in the unit
-  // coordinates with derivative_step (the default), central differences, or the exact solver's
-  // forward sensitivities (falling back to forward differences at a point where they are not
-  // available: a grazing event, a degenerate switch). The sensitivities are 1000 times more
-  // accurate, but one run with them costs about as much as the P + 1 runs of forward differences,
-  // and on 30 random lines the fits came out the same and 45 % slower (bench_random_lines,
-  // README.md). The covariance always uses central differences.
-  Derivatives derivatives = Derivatives::kForward;
+  // How the fit differentiates the model, while iterating and for the covariance: the exact
+  // solver's forward sensitivities (the default; at a point where they are not available, a
+  // grazing event or a degenerate switch, that one Jacobian falls back to forward differences
+  // while iterating and to central differences for the covariance), forward differences in the
+  // unit coordinates with derivative_step, or central differences. The sensitivities are about
+  // 1000 times more accurate than forward differences, and one run with them costs about 6
+  // plain runs against the P + 1 of forward differences (bench_sensitivity, README.md).
+  // Forward and central differences take central differences for the covariance.
+  Derivatives derivatives = Derivatives::kSensitivity;
   // Worker threads of the search: the scan, the preselection, the starts, the hops and the axis
   // probes run on this many threads. Every result is the same for any count.
   int threads = 1;
