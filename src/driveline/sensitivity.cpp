@@ -38,26 +38,27 @@ struct Stencil {
 };
 
 // A model's coefficients (M, G, T, z(0), the forcing) are linear in a damping, a backlash, a gap
-// position, a load and the bite time: two points give their derivative to roundoff. They are not
-// linear in a stiffness (the static twists T/c) or an inertia (1/J): four points, error ≈ δ⁴.
+// position, a load and the bite time: one neighbour gives their derivative to roundoff,
+// (f(p ± δ) − f(p)) / ±δ. They are not linear in a stiffness (the static twists T/c) or an inertia
+// (1/J): four neighbours, ± δ and ± 2δ, error ≈ δ⁴ (one-sided, five points, at a bound).
 bool CoefficientsLinearIn(SceneParameter::Kind kind) {
   using Kind = SceneParameter::Kind;
   return kind != Kind::kStiffness && kind != Kind::kInertia;
 }
 
 Stencil StencilFor(double value, double step, const ParameterRange& range, bool linear) {
-  const double reach = (linear ? 1.0 : 2.0) * step;
+  if (linear) {
+    const double side = value + step > range.upper ? -1.0 : 1.0;
+    return {{0, side}, {-side, side}};
+  }
+  const double reach = 2.0 * step;
   const bool below =
       value - reach < range.lower || (!range.lower_inclusive && value - reach <= range.lower);
   const bool above = value + reach > range.upper;
-  if (!below && !above) {
-    if (linear) return {{-1, 1}, {-0.5, 0.5}};
-    return {{-2, -1, 1, 2}, {1.0 / 12, -8.0 / 12, 8.0 / 12, -1.0 / 12}};
-  }
+  if (!below && !above) return {{-2, -1, 1, 2}, {1.0 / 12, -8.0 / 12, 8.0 / 12, -1.0 / 12}};
   const double side = below ? 1.0 : -1.0;
-  Stencil stencil = linear ? Stencil{{0, side}, {-1.0, 1.0}}
-                           : Stencil{{0, side, 2 * side, 3 * side, 4 * side},
-                                     {-25.0 / 12, 48.0 / 12, -36.0 / 12, 16.0 / 12, -3.0 / 12}};
+  Stencil stencil{{0, side, 2 * side, 3 * side, 4 * side},
+                  {-25.0 / 12, 48.0 / 12, -36.0 / 12, 16.0 / 12, -3.0 / 12}};
   for (double& w : stencil.weights) w *= side;
   return stencil;
 }

@@ -15,12 +15,12 @@
 // (−slope for the bite time, which shifts every breakpoint), and for the bite time the state part
 // jumps by (z'⁻ − z'⁺). The link torques are T z per phase set, so their sensitivities are
 // T s_j + T_j z.
-// The model's coefficient derivatives M_j, G_j, T_j and ∂z(0)/∂p_j are taken by a stencil on
-// models built at p_j ± δ (δ = 1e-3 of the parameter's magnitude; one-sided at a physical bound):
-// they are linear in every parameter but the inertias and stiffnesses, so two points give them
-// to roundoff; those two (through 1/J and the static twists) take the fourth-order stencil at
-// ± δ, ± 2δ, whose error is ≈ 1e-12 relative. Nothing is differenced through time or through
-// the events.
+// The model's coefficient derivatives M_j, G_j, T_j and ∂z(0)/∂p_j are taken from models built
+// at neighbouring values (δ = 1e-3 of the parameter's magnitude). They are linear in every
+// parameter but the inertias and stiffnesses, so one neighbour, p_j + δ (− δ at an upper
+// bound), gives them to roundoff; those two (through 1/J and the static twists) take the
+// fourth-order stencil at ± δ, ± 2δ (one-sided at a physical bound), whose error is ≈ 1e-12
+// relative. Nothing is differenced through time or through the events.
 #pragma once
 
 #include <Eigen/Dense>
