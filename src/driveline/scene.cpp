@@ -68,8 +68,10 @@ namespace {
 
 std::string Quote(const std::string& s) { return "'" + s + "'"; }
 
-void Require(bool ok, const std::string& message) {
-  if (!ok) throw InputError(message);
+// The message is built only for a broken rule: a fit validates a scene for every run.
+template <typename Message>
+void Require(bool ok, const Message& message) {
+  if (!ok) throw InputError(message());
 }
 
 TorqueSource ReadTorqueTable(const TomlSection& section, const std::string& table_path,
@@ -203,34 +205,37 @@ Scene LoadScene(const std::string& path) {
 void ValidateScene(const Scene& scene) {
   const std::string& file = scene.file.empty() ? std::string("<scene>") : scene.file;
   const int n = static_cast<int>(scene.masses.size());
-  Require(n >= 1, file + ": at least one [[mass]] is required");
-  Require(scene.duration_s > 0.0, file + ": [scene] key 'duration': must be > 0");
-  Require(scene.sample_rate_Hz > 0.0, file + ": [scene] key 'sample_rate': must be > 0");
+  Require(n >= 1, [&] { return file + ": at least one [[mass]] is required"; });
+  Require(scene.duration_s > 0.0, [&] { return file + ": [scene] key 'duration': must be > 0"; });
+  Require(scene.sample_rate_Hz > 0.0,
+          [&] { return file + ": [scene] key 'sample_rate': must be > 0"; });
   for (const auto& m : scene.masses) {
     Require(m.inertia_kg_m2 > 0.0 && std::isfinite(m.inertia_kg_m2),
-            file + ": mass " + Quote(m.name) + " key 'inertia': must be > 0");
+            [&] { return file + ": mass " + Quote(m.name) + " key 'inertia': must be > 0"; });
   }
   for (const auto& l : scene.links) {
     const std::string where = file + ": link " + Quote(l.name);
     Require(l.from >= 0 && l.from < n && l.to >= 0 && l.to < n && l.from != l.to,
-            where + " key 'between': must join two different masses");
+            [&] { return where + " key 'between': must join two different masses"; });
     Require(l.stiffness_Nm_per_rad > 0.0 && std::isfinite(l.stiffness_Nm_per_rad),
-            where + " key 'stiffness': must be > 0");
+            [&] { return where + " key 'stiffness': must be > 0"; });
     Require(l.damping_Nms_per_rad >= 0.0 && std::isfinite(l.damping_Nms_per_rad),
-            where + " key 'damping': must be >= 0");
+            [&] { return where + " key 'damping': must be >= 0"; });
     Require(l.backlash_rad >= 0.0 && std::isfinite(l.backlash_rad),
-            where + " key 'backlash': must be >= 0");
+            [&] { return where + " key 'backlash': must be >= 0"; });
     Require(l.gap_position >= -1.0 && l.gap_position <= 1.0,
-            where + " key 'gap_position': must lie in [-1, 1]");
-    Require(
-        l.ratio > 0.0 && std::isfinite(l.ratio),
-        where + " key 'ratio': must be > 0 (i = ω_from / ω_to; got " + FormatNumber(l.ratio) + ")");
+            [&] { return where + " key 'gap_position': must lie in [-1, 1]"; });
+    Require(l.ratio > 0.0 && std::isfinite(l.ratio), [&] {
+      return where + " key 'ratio': must be > 0 (i = ω_from / ω_to; got " + FormatNumber(l.ratio) +
+             ")";
+    });
   }
   // Tree: n − 1 links that connect all masses (hence no cycle).
-  Require(static_cast<int>(scene.links.size()) == n - 1,
-          file + ": [[link]]: the masses and links must form a tree (" + std::to_string(n) +
-              " masses need exactly " + std::to_string(n - 1) + " links, got " +
-              std::to_string(scene.links.size()) + ")");
+  Require(static_cast<int>(scene.links.size()) == n - 1, [&] {
+    return file + ": [[link]]: the masses and links must form a tree (" + std::to_string(n) +
+           " masses need exactly " + std::to_string(n - 1) + " links, got " +
+           std::to_string(scene.links.size()) + ")";
+  });
   std::vector<int> parent(n);
   for (int i = 0; i < n; ++i) parent[i] = i;
   auto find = [&](int i) {
@@ -239,30 +244,32 @@ void ValidateScene(const Scene& scene) {
   };
   for (const auto& l : scene.links) {
     const int a = find(l.from), b = find(l.to);
-    Require(a != b, file + ": link " + Quote(l.name) +
-                        " key 'between': closes a loop; the masses and links must form a tree");
+    Require(a != b, [&] {
+      return file + ": link " + Quote(l.name) +
+             " key 'between': closes a loop; the masses and links must form a tree";
+    });
     parent[a] = b;
   }
   for (const auto& s : scene.torques) {
-    Require(s.mass >= 0 && s.mass < n, file + ": " + s.name + ": unknown mass");
+    Require(s.mass >= 0 && s.mass < n, [&] { return file + ": " + s.name + ": unknown mass"; });
     Require(!s.times_s.empty() && s.times_s.size() == s.values_Nm.size(),
-            file + ": " + s.name + ": needs at least one (time, value) knot");
+            [&] { return file + ": " + s.name + ": needs at least one (time, value) knot"; });
     for (size_t i = 0; i < s.times_s.size(); ++i) {
       Require(std::isfinite(s.times_s[i]) && std::isfinite(s.values_Nm[i]),
-              file + ": " + s.name + ": knots must be finite");
+              [&] { return file + ": " + s.name + ": knots must be finite"; });
       if (i > 0) {
         Require(s.times_s[i] >= s.times_s[i - 1],
-                file + ": " + s.name + ": knot times must not decrease");
+                [&] { return file + ": " + s.name + ": knot times must not decrease"; });
       }
     }
   }
   if (scene.drive) {
     const Drive& d = *scene.drive;
-    Require(d.mass >= 0 && d.mass < n, file + ": [drive] key 'at': unknown mass");
+    Require(d.mass >= 0 && d.mass < n, [&] { return file + ": [drive] key 'at': unknown mass"; });
     Require(d.kp >= 0.0 && d.ki >= 0.0 && d.kp + d.ki > 0.0,
-            file + ": [drive] keys 'kp', 'ki': must be >= 0 and not both 0");
-    Require(d.lag_s > 0.0, file + ": [drive] key 'lag': must be > 0");
-    Require(d.limit_Nm > 0.0, file + ": [drive] key 'limit': must be > 0");
+            [&] { return file + ": [drive] keys 'kp', 'ki': must be >= 0 and not both 0"; });
+    Require(d.lag_s > 0.0, [&] { return file + ": [drive] key 'lag': must be > 0"; });
+    Require(d.limit_Nm > 0.0, [&] { return file + ": [drive] key 'limit': must be > 0"; });
   }
   CheckSampleRate(scene);
 }
