@@ -214,20 +214,20 @@ void ValidateScene(const Scene& scene) {
             [&] { return file + ": mass " + Quote(m.name) + " key 'inertia': must be > 0"; });
   }
   for (const auto& l : scene.links) {
-    const std::string where = file + ": link " + Quote(l.name);
+    const auto where = [&] { return file + ": link " + Quote(l.name); };
     Require(l.from >= 0 && l.from < n && l.to >= 0 && l.to < n && l.from != l.to,
-            [&] { return where + " key 'between': must join two different masses"; });
+            [&] { return where() + " key 'between': must join two different masses"; });
     Require(l.stiffness_Nm_per_rad > 0.0 && std::isfinite(l.stiffness_Nm_per_rad),
-            [&] { return where + " key 'stiffness': must be > 0"; });
+            [&] { return where() + " key 'stiffness': must be > 0"; });
     Require(l.damping_Nms_per_rad >= 0.0 && std::isfinite(l.damping_Nms_per_rad),
-            [&] { return where + " key 'damping': must be >= 0"; });
+            [&] { return where() + " key 'damping': must be >= 0"; });
     Require(l.backlash_rad >= 0.0 && std::isfinite(l.backlash_rad),
-            [&] { return where + " key 'backlash': must be >= 0"; });
+            [&] { return where() + " key 'backlash': must be >= 0"; });
     Require(l.gap_position >= -1.0 && l.gap_position <= 1.0,
-            [&] { return where + " key 'gap_position': must lie in [-1, 1]"; });
+            [&] { return where() + " key 'gap_position': must lie in [-1, 1]"; });
     Require(l.ratio > 0.0 && std::isfinite(l.ratio), [&] {
-      return where + " key 'ratio': must be > 0 (i = ω_from / ω_to; got " + FormatNumber(l.ratio) +
-             ")";
+      return where() + " key 'ratio': must be > 0 (i = ω_from / ω_to; got " +
+             FormatNumber(l.ratio) + ")";
     });
   }
   // Tree: n − 1 links that connect all masses (hence no cycle).
