@@ -55,6 +55,7 @@ void FitOptions::Validate() const {
   require(escalation_factor >= 1, "escalation_factor: must be >= 1");
   require(hops >= 0, "hops: must be >= 0");
   require(hop_radius > 0.0, "hop_radius: must be > 0");
+  require(rejoin_se >= 0.0 && rejoin_se <= 1.0, "rejoin_se: must lie in [0, 1]");
   require(preselect_factor >= 1, "preselect_factor: must be >= 1");
   require(misfit_z > 0.0, "misfit_z: must be > 0");
   require(ambiguity_chi2 >= 0.0, "ambiguity_chi2: must be >= 0");

@@ -455,7 +455,7 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
         else
           jac.col(i) *= ParameterMap::UnitPerAngle(parameters[0][i]);
       }
-      if (measure_step_) remaining_step_se_ = GaussNewtonStepInStandardErrors(jac, r);
+      Measure(jac, r, parameters[0]);
       return true;
     }
     // Not available here (a grazing event, a degenerate switch): forward differences.
@@ -496,12 +496,25 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
     }
     jac.col(i) *= ParameterMap::UnitPerAngle(parameters[0][i]);
   }
-  if (measure_step_) remaining_step_se_ = GaussNewtonStepInStandardErrors(jac, r);
+  Measure(jac, r, parameters[0]);
   return true;
 }
 
+void ProjectedResidual::Measure(const Eigen::Ref<const Eigen::MatrixXd>& jacobian,
+                                const Eigen::VectorXd& residuals, const double* phi) const {
+  jacobian_point_.assign(phi, phi + model_.parameters());
+  if (!measure_step_) return;
+  double variance = 0.0;
+  remaining_step_se_ = GaussNewtonStepInStandardErrors(jacobian, residuals, &variance);
+  if (std::isfinite(remaining_step_se_)) {
+    precision_ = jacobian.transpose() * jacobian / variance;
+  } else {
+    precision_.resize(0, 0);
+  }
+}
+
 double GaussNewtonStepInStandardErrors(const Eigen::Ref<const Eigen::MatrixXd>& jacobian,
-                                       const Eigen::VectorXd& residuals) {
+                                       const Eigen::VectorXd& residuals, double* variance) {
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(jacobian);
   const Eigen::Index rank = qr.rank();
   const Eigen::Index freedom = residuals.size() - rank;
@@ -510,6 +523,7 @@ double GaussNewtonStepInStandardErrors(const Eigen::Ref<const Eigen::MatrixXd>& 
   const double explained = rotated.head(rank).squaredNorm();
   const double left = rotated.tail(freedom).squaredNorm();
   if (!(left > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  if (variance != nullptr) *variance = left / static_cast<double>(freedom);
   return std::sqrt(explained / (left / static_cast<double>(freedom)));
 }
 

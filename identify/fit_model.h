@@ -182,6 +182,11 @@ class ProjectedResidual : public ceres::CostFunction {
   // when not asked, or when the residuals leave no degree of freedom.
   void MeasureRemainingStep() { measure_step_ = true; }
   double remaining_step_se() const { return remaining_step_se_; }
+  // Also once asked to: the Gram matrix JᵀJ / s² at that point (φ coordinates; empty before the
+  // first Jacobian or without a degree of freedom), the inverse of the covariance there.
+  const Eigen::MatrixXd& precision() const { return precision_; }
+  // The angles φ of the latest evaluation with a Jacobian (empty before the first).
+  const std::vector<double>& jacobian_point() const { return jacobian_point_; }
 
  private:
   const FitModel& model_;
@@ -190,13 +195,18 @@ class ProjectedResidual : public ceres::CostFunction {
   std::vector<int> frozen_;
   bool measure_step_ = false;
   mutable double remaining_step_se_ = std::numeric_limits<double>::quiet_NaN();
+  mutable Eigen::MatrixXd precision_;
+  mutable std::vector<double> jacobian_point_;
+  void Measure(const Eigen::Ref<const Eigen::MatrixXd>& jacobian, const Eigen::VectorXd& residuals,
+               const double* phi) const;
 };
 
 // The Gauss–Newton step −J⁺r in standard errors: √(‖Q₁ᵀr‖² / s²), Q₁ spanning J's numerical
 // column space (pivoted QR), s² = (‖r‖² − ‖Q₁ᵀr‖²) / (n − rank). NaN without a degree of freedom
 // or when J has no column of rank.
 double GaussNewtonStepInStandardErrors(const Eigen::Ref<const Eigen::MatrixXd>& jacobian,
-                                       const Eigen::VectorXd& residuals);
+                                       const Eigen::VectorXd& residuals,
+                                       double* variance = nullptr);
 
 // Runs task(worker_model, i) for every i in [0, count) on `threads` workers, each with its
 // own copy of `model` (its own stage; the simulation count and progress are shared), and returns

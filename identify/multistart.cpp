@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <random>
 
 #include "identify/verdict.h"
@@ -48,6 +49,39 @@ class CloseEnough final : public ceres::IterationCallback {
  private:
   const ProjectedResidual& residual_;
   const FitOptions& options_;
+};
+
+// Ends Levenberg–Marquardt at the first current point within options.rejoin_se of a known
+// minimum (the length of the difference in φ under the minimum's precision) whose χ² (twice
+// the fixed-weight cost) is not below the minimum's by more than 1.
+class Rejoins final : public ceres::IterationCallback {
+ public:
+  Rejoins(const ProjectedResidual& residual, const FitOptions& options, const LocalFit& known)
+      : residual_(residual), options_(options), known_(known) {
+    phi_.resize(known.u.size());
+    for (size_t i = 0; i < known.u.size(); ++i) phi_[i] = ParameterMap::AngleFromUnit(known.u[i]);
+  }
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
+    const std::vector<double>& at = residual_.jacobian_point();
+    if (!summary.step_is_successful || at.size() != known_.u.size()) return ceres::SOLVER_CONTINUE;
+    Eigen::VectorXd d(at.size());
+    for (size_t i = 0; i < at.size(); ++i) d[i] = at[i] - phi_[i];
+    const double length2 = d.dot(known_.precision * d);
+    if (length2 <= options_.rejoin_se * options_.rejoin_se &&
+        2.0 * (summary.cost - known_.cost) >= -1.0) {
+      rejoined_ = true;
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
+    return ceres::SOLVER_CONTINUE;
+  }
+  bool rejoined() const { return rejoined_; }
+
+ private:
+  const ProjectedResidual& residual_;
+  const FitOptions& options_;
+  const LocalFit& known_;
+  Eigen::VectorXd phi_;
+  bool rejoined_ = false;
 };
 
 }  // namespace
@@ -105,7 +139,8 @@ std::vector<std::vector<double>> ScanStarts(const FitModel& model, const FitConf
 }
 
 LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<double> u,
-                bool final_stage, int iterations, const std::vector<int>& frozen) {
+                bool final_stage, int iterations, const std::vector<int>& frozen,
+                const LocalFit* known) {
   ProjectedResidual residual(model, options.derivative_step, options.derivatives, frozen);
   ceres::Problem problem(ProblemOptions());
   std::vector<double> phi(u.size());
@@ -134,12 +169,29 @@ LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<do
   solver.gradient_tolerance = 1e-20;
   solver.num_threads = 1;  // one residual block: the workers are the search's (options.threads)
   solver.logging_type = ceres::SILENT;
+  // The rejoin test first: where both stop the fit, it is the known minimum.
+  std::optional<Rejoins> rejoins;
+  if (known != nullptr && known->precision.size() > 0 && options.rejoin_se > 0.0) {
+    solver.callbacks.push_back(&rejoins.emplace(residual, options, *known));
+  }
   CloseEnough close_enough(residual, options);
   if (final_stage && frozen.empty() && options.remaining_step_se > 0.0) {
     residual.MeasureRemainingStep();
     solver.callbacks.push_back(&close_enough);
   }
   ceres::Solve(solver, &problem, &fit.summary);
+  if (rejoins && rejoins->rejoined()) {
+    fit.summary.termination_type = ceres::CONVERGENCE;
+    fit.summary.message = "came back to a minimum found before (within " +
+                          ShortNumber(options.rejoin_se) + " standard errors)";
+    fit.u = known->u;
+    fit.cost = known->cost;
+    fit.precision = known->precision;
+    fit.usable = known->usable;
+    fit.converged = known->converged;
+    fit.rejoined = true;
+    return fit;
+  }
   if (fit.summary.termination_type == ceres::USER_SUCCESS) {
     // Converged by the statistical test: reported as Ceres' own convergence.
     fit.summary.termination_type = ceres::CONVERGENCE;
@@ -149,6 +201,7 @@ LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<do
   }
   fit.u.resize(phi.size());
   for (size_t i = 0; i < phi.size(); ++i) fit.u[i] = ParameterMap::UnitFromAngle(phi[i]);
+  if (residual.jacobian_point() == phi) fit.precision = residual.precision();
   fit.usable = fit.summary.IsSolutionUsable() && std::isfinite(fit.summary.final_cost);
   fit.converged = fit.summary.termination_type == ceres::CONVERGENCE;
   fit.cost = fit.usable ? fit.summary.final_cost : std::numeric_limits<double>::infinity();
@@ -236,17 +289,24 @@ std::vector<LocalFit> RefineStarts(FitModel* model, const FitOptions& options,
       if (!fit.usable) break;
     }
     fit.start = s;
-    const double continued_cost = fit.cost;
+    found.reserve(2);
     found.push_back(std::move(fit));
+    const LocalFit& continued = found.front();  // stays in place: room for two is reserved
     // The same start refined on the whole window at once. A short stage sees the dampings
     // poorly, and noise can carry them into the basin of a neighbouring minimum of the whole
     // window; a fit from a start inside the right basin stays there. A capped try first: it is
     // finished only when it comes near the continued fit.
     if (stages.size() > 1) {
       copy.SetStage(1.0);
-      LocalFit direct = Refine(copy, options, starts[s], false, options.direct_try_iterations);
-      if (direct.usable && direct.cost < options.direct_retry_factor * continued_cost) {
-        direct = Refine(copy, options, direct.u, true, options.max_iterations);
+      // Either fit stops early where it comes back to the continued fit's minimum.
+      const LocalFit* known = continued.usable ? &continued : nullptr;
+      LocalFit direct =
+          Refine(copy, options, starts[s], false, options.direct_try_iterations, {}, known);
+      const bool near = direct.usable && direct.cost < options.direct_retry_factor * continued.cost;
+      if (near && !direct.rejoined) {
+        direct = Refine(copy, options, direct.u, true, options.max_iterations, {}, known);
+      }
+      if (near) {
         direct.start = s;
         found.push_back(std::move(direct));
       }
@@ -313,7 +373,8 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
       HopPoints(*model, minima[search.best].u, minima[search.best].cost, options);
   for (auto& fit : MapOverCopies<LocalFit>(
            *model, options.threads, static_cast<int>(hops.size()), [&](const FitModel&copy, int i) {
-             return Refine(copy, options, hops[i], true, options.max_iterations);
+             return Refine(copy, options, hops[i], true, options.max_iterations, {},
+                           &minima[search.best]);
            })) {
     fit.start = -1;
     minima.push_back(std::move(fit));

@@ -22,6 +22,10 @@ struct LocalFit {
   bool usable = false;
   bool converged = false;  // Ceres reported CONVERGENCE
   int start = -1;          // which start it came from
+  // The inverse covariance JᵀJ / s² at u, in the angles φ (FitModel's ProjectedResidual), when
+  // the fit measured it (a final stage); empty otherwise.
+  Eigen::MatrixXd precision;
+  bool rejoined = false;  // stopped on coming back to a known minimum: it is that minimum
 };
 
 // The scan: `start`, then a Latin hypercube of config.scan_points over the scanned slots (the
@@ -43,9 +47,11 @@ std::vector<std::vector<double>> PreselectStarts(FitModel* model, const FitOptio
 
 // Levenberg–Marquardt on the current stage of `model` from u; a stage before the last stops at a
 // loose tolerance after `iterations` (its answer only has to start the next stage inside the right
-// basin). Frozen slots are held.
+// basin). Frozen slots are held. With `known` (a minimum already found, with its precision),
+// the fit stops as soon as it comes back to it (FitOptions::rejoin_se) and returns a copy of it.
 LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<double> u,
-                bool final_stage, int iterations, const std::vector<int>& frozen = {});
+                bool final_stage, int iterations, const std::vector<int>& frozen = {},
+                const LocalFit* known = nullptr);
 
 // Window divisors of the continuation stages (FitModel::SetStage), the last 1 (whole window).
 std::vector<double> ContinuationStages(const FitModel& model, const FitOptions& options);

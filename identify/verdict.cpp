@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "millkit/io/number_format.h"
 
@@ -125,6 +126,27 @@ void JudgeFit(const FitModel& model, const std::vector<ChannelNoise>& noise,
     }
   }
 
+  // The best minimum reached only from a hop or a probe (start −1), well below every start's
+  // fit: the search's starts missed that valley, and nothing says they did not miss a lower one.
+  bool missed_by_starts = false;
+  if (chosen.start < 0) {
+    double best_start = std::numeric_limits<double>::infinity();
+    for (const auto& fit : minima) {
+      if (fit.usable && fit.start >= 0) best_start = std::min(best_start, fit.cost);
+    }
+    const double below = 2.0 * (best_start - chosen.cost) / std::max(scale2, 1e-300);
+    if (below > options.ambiguity_chi2) {
+      missed_by_starts = true;
+      warnings.push_back(
+          "the best minimum was reached only by a basin hop or an axis probe, at a chi2 " +
+          (std::isfinite(below) ? ShortNumber(below) + " below the best of the " +
+                                      std::to_string(summary.starts) + " starts' fits"
+                                : std::string("below every start's fit")) +
+          ": the misfit has valleys the starts miss, and a lower one may remain (more starts "
+          "or scan points, a narrower prior, or a longer record may settle it)");
+    }
+  }
+
   if (!chosen.converged) {
     warnings.insert(
         warnings.begin(),
@@ -137,8 +159,9 @@ void JudgeFit(const FitModel& model, const std::vector<ChannelNoise>& noise,
     summary.verdict = "misfit";
   } else if (ambiguous) {
     summary.verdict = "ambiguous";
-  } else if (lower_found) {
-    // Levenberg–Marquardt stopped, but a probe beside its answer is lower (the warning says so).
+  } else if (lower_found || missed_by_starts) {
+    // Levenberg–Marquardt stopped, but a probe beside its answer is lower, or the starts missed
+    // the best minimum's valley (the warnings say which): the search has not settled.
     summary.verdict = "not_converged";
   } else {
     summary.verdict = "ok";

@@ -53,4 +53,6 @@ slow+="|Sensitivities agree with central differences at 200 points"
 # Six random-line fits with the statistical stop on and off: 86 s under the sanitizers. Every fit
 # here runs the stop; its measure has its own fast test.
 slow+="|Fits with and without the remaining-step stop agree"
+# The same with the rejoin stop on and off; the search's own test runs the stop on three lines.
+slow+="|Fits with and without the rejoin stop agree"
 ctest --output-on-failure -j "$(nproc)" -LE package -E "$slow"

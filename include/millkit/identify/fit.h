@@ -32,7 +32,10 @@
 //   degenerate     the record cannot support the fit (a value that is not a torque, a flat or
 //                  dead channel, fewer samples after the response starts than fitted quantities);
 //   not_converged  Levenberg–Marquardt did not converge at the best minimum (and, after the
-//                  rules below, when a probe beside the answer found a lower cost);
+//                  rules below, when a probe beside the answer found a lower cost, or when only
+//                  a basin hop or an axis probe reached the best minimum, at a χ² more than
+//                  ambiguity_chi2 below every start's: the starts missed its valley, and may
+//                  have missed a lower one);
 //   misfit         some channel's residual is not its noise, at the one-sided level misfit_z:
 //                  its variance exceeds the noise variance (log-ratio test, both variances'
 //                  degrees of freedom), or its autocorrelation over up to 20 lags differs from
@@ -126,6 +129,12 @@ struct FitOptions {
   int hops = 4;
   double hop_radius = 5.0;
   unsigned hop_seed = 1;
+  // A fit that may only come back to a minimum already found (a basin hop to the best minimum,
+  // a start's direct fit to its continued one) stops at the first iterate within rejoin_se of
+  // it: the Mahalanobis length of the difference under that minimum's covariance, which bounds
+  // every parameter's difference in standard errors, at a χ² not lower by more than 1. It is
+  // then that minimum (its values, cost and convergence). 0 turns the test off.
+  double rejoin_se = 0.5;
 
   // Verdict levels (see above).
   double misfit_z = 3.0;
