@@ -52,6 +52,9 @@ void FitOptions::Validate() const {
   require(profile_points >= 0, "profile_points: must be >= 0");
   require(profile_chi2 > 0.0, "profile_chi2: must be > 0");
   require(profile_restarts >= 0, "profile_restarts: must be >= 0");
+  require(profile_relax_widening >= 0.0, "profile_relax_widening: must be >= 0");
+  require(profile_iterations >= 1, "profile_iterations: must be >= 1");
+  require(profile_relax_reach >= profile_step, "profile_relax_reach: must be >= profile_step");
   require(escalation_factor >= 1, "escalation_factor: must be >= 1");
   require(hops >= 0, "hops: must be >= 0");
   require(hop_radius > 0.0, "hop_radius: must be > 0");
@@ -400,8 +403,8 @@ bool DescribeBest(const FitModel& model, const Search& search, const RecordAsses
   summary.fitted_quantities = static_cast<int>(fitted.size());
   summary.noise_scale = std::sqrt(2.0 * summary.cost / std::max(1.0, dof));
   Eigen::MatrixXd covariance = Covariance(jac, fitted, summary.noise_scale);
-  const auto widening = ProfileWidening(model, u, covariance, summary.cost, summary.noise_scale,
-                                        options, search.probes, lower_found);
+  const auto widening = ProfileWidening(model, u, jac, fitted, covariance, summary.cost,
+                                        summary.noise_scale, options, search.probes, lower_found);
   std::string widened;
   for (int i = 0; i < model.parameters(); ++i) {
     if (widening[i] > 1.0 && std::isfinite(widening[i])) {

@@ -5,6 +5,7 @@
 #include <limits>
 #include <random>
 
+#include "identify/multistart.h"
 #include "millkit/io/number_format.h"
 
 namespace millkit::identify {
@@ -150,32 +151,125 @@ std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vec
   return points;
 }
 
+namespace {
+
+// One Gauss–Newton step of every fitted quantity but `held` from `point` (projected residuals
+// `r` there), with the column-scaled Jacobian of the minimum; the step is cut back to the unit
+// box. The straight profile direction is the linearisation's; along a curved valley the other
+// quantities must move on, and this step finds how far.
+class ProfileRelaxer {
+ public:
+  ProfileRelaxer(const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted, int parameters)
+      : fitted_(fitted),
+        parameters_(parameters),
+        norms_(fitted.size()),
+        scaled_(jacobian.rows(), static_cast<Eigen::Index>(fitted.size())) {
+    for (size_t j = 0; j < fitted.size(); ++j) {
+      scaled_.col(j) = jacobian.col(fitted[j]);
+      norms_(j) = scaled_.col(j).norm();
+      if (norms_(j) > 0.0) scaled_.col(j) /= norms_(j);
+    }
+    normal_ = scaled_.transpose() * scaled_;
+  }
+
+  std::vector<double> Step(const std::vector<double>& point, const Eigen::VectorXd& r,
+                           int held) const {
+    std::vector<int> keep;
+    for (size_t j = 0; j < fitted_.size(); ++j) {
+      if (fitted_[j] != held && norms_(j) > 0.0) keep.push_back(static_cast<int>(j));
+    }
+    const Eigen::VectorXd gradient = scaled_.transpose() * r;
+    const auto k = static_cast<Eigen::Index>(keep.size());
+    Eigen::MatrixXd normal(k, k);
+    Eigen::VectorXd rhs(k);
+    for (Eigen::Index a = 0; a < k; ++a) {
+      rhs(a) = -gradient(keep[a]);
+      for (Eigen::Index b = 0; b < k; ++b) normal(a, b) = normal_(keep[a], keep[b]);
+      normal(a, a) *= 1.0 + 1e-10;  // the columns are unit: a rank-deficient pair stays solvable
+    }
+    const Eigen::VectorXd step = normal.ldlt().solve(rhs);
+    std::vector<double> relaxed(point);
+    for (Eigen::Index a = 0; a < k; ++a) {
+      const int slot = fitted_[keep[a]];
+      if (slot >= parameters_ || !std::isfinite(step(a))) continue;
+      relaxed[slot] = std::clamp(point[slot] + step(a) / norms_(keep[a]), 0.0, 1.0);
+    }
+    return relaxed;
+  }
+
+ private:
+  const std::vector<int>& fitted_;
+  int parameters_;
+  Eigen::VectorXd norms_;
+  Eigen::MatrixXd scaled_;
+  Eigen::MatrixXd normal_;
+};
+
+}  // namespace
+
 std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,
+                                    const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted,
                                     const Eigen::MatrixXd& covariance, double best_cost,
                                     double noise_scale, const FitOptions& options,
-                                    const std::vector<ProfileProbe>& probes, bool* lower_found) {
+                                    const std::vector<ProfileProbe>& probes, bool* lower_found,
+                                    int* relaxed_walks) {
   const int p = model.parameters();
   std::vector<double> widening(p, 1.0);
   *lower_found = false;
+  if (relaxed_walks != nullptr) *relaxed_walks = 0;
   const double step = options.profile_step;
   const double predicted = 0.5 * step * step * noise_scale * noise_scale;
+  const double chi2_per_cost = 2.0 / (noise_scale * noise_scale);
+  const bool relax = options.profile_relax_widening > 0.0;
+  const ProfileRelaxer relaxer(jacobian, fitted, p);
   for (int i = 0; i < p; ++i) {
     const double variance = covariance(i, i);
     if (!(variance > 0.0) || !std::isfinite(variance)) continue;
     const Eigen::VectorXd direction = covariance.col(i).head(p) / std::sqrt(variance);
+    // The axis probes and the followed profile, in physical units (a log-scaled parameter's
+    // spread is not symmetric in u): a point held at distance d with a profile χ² implies a
+    // standard error of d / √max(χ², 1) (a parabola through it; below χ² 1 the misfit's
+    // roughness decides, and the point is at least within one standard error).
+    const double per_unit = model.slot(i).map.PhysicalPerUnit(u[i]);
+    const double standard_error = std::sqrt(variance) * per_unit;
+    const double estimate = model.Physical(i, u[i]);
+    const auto implied = [&](double value, double chi2) {
+      return std::abs(model.Physical(i, value) - estimate) / std::sqrt(std::max(chi2, 1.0)) /
+             standard_error;
+    };
+    const auto along = [&](double sign, double distance) {
+      std::vector<double> point(u);
+      for (int s = 0; s < p; ++s) {
+        point[s] += sign * distance * direction(s);
+        // Past a bound the parameter cannot go; that side says nothing about the spread inside.
+        if (!(point[s] >= 0.0 && point[s] <= 1.0)) return std::vector<double>();
+      }
+      return point;
+    };
     double flattest = std::numeric_limits<double>::infinity();
     for (const double sign : {-1.0, 1.0}) {
-      std::vector<double> probe(u);
-      bool inside = true;
-      for (int s = 0; s < p; ++s) {
-        probe[s] += sign * step * direction(s);
-        inside = inside && probe[s] >= 0.0 && probe[s] <= 1.0;
-      }
-      // Past a bound the parameter cannot go; that side says nothing about the spread inside.
-      if (!inside) continue;
-      const double rise = model.ProjectedCost(probe.data()) - best_cost;
-      if (!std::isfinite(rise)) continue;
+      const std::vector<double> probe = along(sign, step);
+      Eigen::VectorXd r;
+      if (probe.empty() || !model.ProjectedResiduals(probe.data(), &r)) continue;
+      const double rise = 0.5 * r.squaredNorm() - best_cost;
       flattest = std::min(flattest, rise);
+      if (!relax || !(rise >= 0.0)) continue;
+      const std::vector<double> relaxed = relaxer.Step(probe, r, i);
+      const double relaxed_chi2 = (model.ProjectedCost(relaxed.data()) - best_cost) * chi2_per_cost;
+      if (!(implied(probe[i], relaxed_chi2) > options.profile_relax_widening)) continue;
+      // The valley curves away from the straight line: follow this side of the profile.
+      if (relaxed_walks != nullptr) ++*relaxed_walks;
+      for (double distance = step; distance <= options.profile_relax_reach * (1.0 + 1e-9);
+           distance *= 2.0) {
+        const std::vector<double> start = along(sign, distance);
+        if (start.empty()) break;
+        const LocalFit held = Refine(model, options, start, false, options.profile_iterations, {i});
+        if (!held.usable) break;
+        const double chi2 = (held.cost - best_cost) * chi2_per_cost;
+        if (chi2 < -1.0) *lower_found = true;
+        if (!(chi2 < options.profile_chi2)) break;
+        widening[i] = std::max(widening[i], implied(start[i], chi2));
+      }
     }
     if (flattest < 0.0) {
       *lower_found = true;
@@ -183,23 +277,20 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
       continue;
     }
     if (std::isfinite(flattest) && flattest < predicted) {
-      widening[i] = std::sqrt(predicted / std::max(flattest, 1e-12 * predicted));
+      widening[i] =
+          std::max(widening[i], std::sqrt(predicted / std::max(flattest, 1e-12 * predicted)));
     }
-    // The axis probes, in physical units (a log-scaled parameter's spread is not symmetric in u).
-    const double per_unit = model.slot(i).map.PhysicalPerUnit(u[i]);
-    const double standard_error = std::sqrt(variance) * per_unit;
-    const double estimate = model.Physical(i, u[i]);
     for (const auto& probe : probes) {
       if (probe.slot != i) continue;
-      const double chi2 = 2.0 * (probe.cost - best_cost) / (noise_scale * noise_scale);
+      const double chi2 = (probe.cost - best_cost) * chi2_per_cost;
       if (chi2 < 0.0) {
         *lower_found = true;
         continue;
       }
       if (!(chi2 < options.profile_chi2)) continue;
-      const double implied =
+      const double implied_axis =
           std::abs(model.Physical(i, probe.u[i]) - estimate) / std::sqrt(std::max(chi2, 1e-12));
-      widening[i] = std::max(widening[i], implied / standard_error);
+      widening[i] = std::max(widening[i], implied_axis / standard_error);
     }
   }
   return widening;

@@ -49,13 +49,20 @@ std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vec
 // direction C e_i / √C_ii by ± profile_step (in standard errors); the linearisation predicts the
 // cost to rise by ½ step² noise_scale². Where the actual projected cost rises less on either side,
 // the standard error is widened by √(predicted/actual) (the cost is flatter than the Jacobian
-// says: a weakly seen damping near a bound, an impact that appears or vanishes). Returns the
-// widening factor per scene slot (1 where none), and sets `lower_found` when a probe found a cost
-// below the minimum's (the fit had not reached its minimum).
+// says: a weakly seen damping near a bound, an impact that appears or vanishes). Each probe is
+// then relaxed by one Gauss–Newton step of the other quantities (`jacobian`, the full one at u;
+// `fitted`, its fitted columns): where the valley curves away from the straight line, the
+// relaxed probe lies lower, and that side of the profile is followed with the parameter held
+// (FitOptions::profile_relax_widening); each point held at distance d with a profile χ² widens
+// to d / √max(χ², 1). Returns the widening factor per scene slot (1 where none), sets
+// `lower_found` when a probe found a cost below the minimum's (the fit had not reached its
+// minimum), and counts the followed sides in `relaxed_walks` when given.
 std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,
+                                    const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted,
                                     const Eigen::MatrixXd& covariance, double best_cost,
                                     double noise_scale, const FitOptions& options,
-                                    const std::vector<ProfileProbe>& probes, bool* lower_found);
+                                    const std::vector<ProfileProbe>& probes, bool* lower_found,
+                                    int* relaxed_walks = nullptr);
 
 // Flags a parameter not identifiable where neighbouring axis probes have the same cost: the
 // record does not change over that range (a gap that never closes there), so the local standard

@@ -124,6 +124,15 @@ struct FitOptions {
   int profile_points = 8;
   double profile_chi2 = 25.0;
   int profile_restarts = 2;
+  // The profile probes are relaxed: one Gauss–Newton step of the other quantities from each
+  // (the Jacobian at the minimum), since the valley may curve away from the straight profile
+  // direction. Where a relaxed probe implies a standard error more than profile_relax_widening
+  // times the linearised one, that side of the profile is followed: Levenberg–Marquardt with the
+  // parameter held (profile_iterations each) at profile_step × 1, 2, 4, … up to
+  // profile_relax_reach standard errors, until χ² passes profile_chi2 or a bound. 0: no relaxing.
+  double profile_relax_widening = 1.25;
+  int profile_iterations = 3;
+  double profile_relax_reach = 16.0;
   // Basin hopping from the best minimum: hops refinements from points hop_radius standard
   // errors away in random directions (seeded by hop_seed); a lower one becomes the best.
   int hops = 4;
