@@ -380,6 +380,16 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
     minima.push_back(std::move(fit));
   }
   search.best = lowest();
+  // A valley that bends sharply within a few standard errors: followed, a lower one along it.
+  model->set_activity("following curved valleys");
+  const std::vector<std::vector<double>> curved =
+      CurvedValleyPoints(*model, minima[search.best].u, minima[search.best].cost, options);
+  if (!curved.empty()) {
+    LocalFit fit = Refine(*model, options, curved.front(), true, options.max_iterations);
+    fit.start = -1;
+    minima.push_back(std::move(fit));
+    search.best = lowest();
+  }
   // A coarse look along every parameter's axis from the best minimum; a probe below it is a
   // valley the starts missed: Levenberg–Marquardt goes on from there.
   model->set_activity("probing the best minimum");

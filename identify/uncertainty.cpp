@@ -116,21 +116,37 @@ std::vector<ProfileProbe> ProfileProbes(const FitModel& model, const std::vector
   return probes;
 }
 
-std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vector<double>& u,
-                                           double cost, const FitOptions& options) {
-  std::vector<std::vector<double>> points;
+namespace {
+
+// The covariance at u (cost ½χ² there) from a fresh Jacobian, with the noise scale of that cost.
+bool FreshCovariance(const FitModel& model, const std::vector<double>& u, double cost,
+                     const FitOptions& options, Eigen::MatrixXd* covariance, double* noise_scale) {
   Eigen::VectorXd r;
   std::vector<Nuisance> nuisance;
   Eigen::MatrixXd jacobian;
-  if (options.hops < 1 || !model.ProjectedResiduals(u.data(), &r, &nuisance) ||
+  if (!model.ProjectedResiduals(u.data(), &r, &nuisance) ||
       !model.FullJacobian(u, nuisance, options.derivative_step, options.derivatives, &r,
                           &jacobian)) {
-    return points;
+    return false;
   }
   const std::vector<int> fitted = model.FittedIndices();
-  const int p = model.parameters();
   const double dof = std::max(1.0, static_cast<double>(model.residuals() - fitted.size()));
-  const Eigen::MatrixXd covariance = Covariance(jacobian, fitted, std::sqrt(2.0 * cost / dof));
+  *noise_scale = std::sqrt(2.0 * cost / dof);
+  *covariance = Covariance(jacobian, fitted, *noise_scale);
+  return true;
+}
+
+}  // namespace
+
+std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vector<double>& u,
+                                           double cost, const FitOptions& options) {
+  std::vector<std::vector<double>> points;
+  Eigen::MatrixXd covariance;
+  double noise_scale = 0.0;
+  if (options.hops < 1 || !FreshCovariance(model, u, cost, options, &covariance, &noise_scale)) {
+    return points;
+  }
+  const int p = model.parameters();
   // The scene block of the covariance, factored: a hop of radius ρ is ρ standard errors of the
   // joint distribution in a random direction.
   const Eigen::MatrixXd scene_block = covariance.topLeftCorner(p, p);
@@ -206,6 +222,73 @@ class ProfileRelaxer {
 };
 
 }  // namespace
+
+std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
+                                                    const std::vector<double>& u, double cost,
+                                                    const FitOptions& options) {
+  std::vector<std::vector<double>> lower;
+  Eigen::MatrixXd covariance;
+  double noise_scale = 0.0;
+  if (!(options.curved_valley_ratio > 0.0) ||
+      !FreshCovariance(model, u, cost, options, &covariance, &noise_scale)) {
+    return lower;
+  }
+  const int p = model.parameters();
+  const double step = options.profile_step;
+  const double predicted = 0.5 * step * step * noise_scale * noise_scale;
+  struct Held {
+    int slot;
+    std::vector<double> start;
+  };
+  std::vector<Held> held;
+  for (int i = 0; i < p; ++i) {
+    const double variance = covariance(i, i);
+    if (!(variance > 0.0) || !std::isfinite(variance)) continue;
+    const Eigen::VectorXd direction = covariance.col(i).head(p) / std::sqrt(variance);
+    const auto along = [&](double distance) {
+      std::vector<double> point(u);
+      for (int s = 0; s < p; ++s) {
+        point[s] += distance * direction(s);
+        if (!(point[s] >= 0.0 && point[s] <= 1.0)) return std::vector<double>();
+      }
+      return point;
+    };
+    double steepest = 0.0;
+    for (const double sign : {-1.0, 1.0}) {
+      const std::vector<double> probe = along(sign * step);
+      if (!probe.empty()) {
+        const double rise = model.ProjectedCost(probe.data()) - cost;
+        if (std::isfinite(rise)) steepest = std::max(steepest, rise);
+      }
+    }
+    if (!(steepest > options.curved_valley_ratio * predicted)) continue;
+    // The misfit is far from quadratic two standard errors away: the valley bends sharply, and
+    // the linearisation says nothing of what lies further along it.
+    for (const double sign : {-1.0, 1.0}) {
+      for (double distance = 2.0 * step; distance <= options.profile_relax_reach * (1.0 + 1e-9);
+           distance *= 2.0) {
+        std::vector<double> start = along(sign * distance);
+        if (start.empty()) break;
+        held.push_back({i, std::move(start)});
+      }
+    }
+  }
+  const std::vector<LocalFit> walked = MapOverCopies<LocalFit>(
+      model, options.threads, static_cast<int>(held.size()), [&](const FitModel& copy, int k) {
+        return Refine(copy, options, held[k].start, false, options.curved_valley_iterations,
+                      {held[k].slot});
+      });
+  // χ² more than 1 below the minimum's: another valley, not the misfit's roughness.
+  const double below = cost - 0.5 * noise_scale * noise_scale;
+  std::vector<const LocalFit*> found;
+  for (const auto& fit : walked) {
+    if (fit.usable && fit.cost < below) found.push_back(&fit);
+  }
+  std::stable_sort(found.begin(), found.end(),
+                   [](const LocalFit* a, const LocalFit* b) { return a->cost < b->cost; });
+  for (const LocalFit* fit : found) lower.push_back(fit->u);
+  return lower;
+}
 
 std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,
                                     const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted,

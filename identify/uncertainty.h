@@ -45,6 +45,19 @@ std::vector<ProfileProbe> ProfileProbes(const FitModel& model, const std::vector
 std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vector<double>& u,
                                            double cost, const FitOptions& options);
 
+// Curved valleys: where the cost ± profile_step standard errors along a parameter's straight
+// profile direction rises more than FitOptions::curved_valley_ratio times the linearisation's
+// prediction, the valley bends sharply within a few standard errors and the linearisation says
+// nothing of what lies further along it. That parameter's profile is then followed: it is held
+// at ± 2, 4, 8 … × profile_step up to profile_relax_reach standard errors from the minimum u
+// (cost `cost`), the others refitted (curved_valley_iterations of Levenberg–Marquardt, on
+// options.threads workers). Returns the held points whose χ² is more than 1 below the
+// minimum's, lowest first: a lower valley along a curved one, which the starts and the hops
+// missed.
+std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
+                                                    const std::vector<double>& u, double cost,
+                                                    const FitOptions& options);
+
 // The profile check: for each scene parameter i, θ moves along its profile
 // direction C e_i / √C_ii by ± profile_step (in standard errors); the linearisation predicts the
 // cost to rise by ½ step² noise_scale². Where the actual projected cost rises less on either side,

@@ -1,6 +1,7 @@
 // The search's local fits (identify/multistart.h): a fit that comes back to a minimum already
-// found stops there (FitOptions::rejoin_se), and only there. And the profile check of the
-// standard errors (identify/uncertainty.h), whose followed profile holds one parameter in them.
+// found stops there (FitOptions::rejoin_se), and only there. And the profiles followed with one
+// parameter held (identify/uncertainty.h): the check of the standard errors, and the walk along
+// a sharply curved valley.
 // identify/fit_model.h comes first: glog (through Ceres) defines CHECK, which Catch's replaces.
 #include "identify/fit_model.h"
 #undef CHECK
@@ -170,6 +171,44 @@ TEST_CASE("The profile check follows a valley that curves away from the straight
       CHECK(off / relaxed[i] < 3.0);
     }
   }
+}
+
+// Random line 526 (3 masses, one channel, a 17.7 mrad gap): the search without the curved-valley
+// walk ends in a minimum whose χ² is 106 above the truth's. Two standard errors along its
+// straight profile directions the cost rises far above the prediction; followed with one
+// parameter held, the valley leads down to the truth's minimum.
+TEST_CASE("A sharply curved valley is followed down to a lower one", "[fit]") {
+  const LineFromTruth fixture(526);
+  const identify::FitModel& model = fixture.model;
+  REQUIRE(fixture.minimum.converged);
+  identify::FitOptions options;
+  options.curved_valley_ratio = 0.0;
+  const identify::FitResult unfollowed =
+      identify::Fit(fixture.line.prior, fixture.line.record, fixture.line.config, options);
+  REQUIRE(unfollowed.summary.success);
+  std::vector<double> u(model.parameters());
+  for (int i = 0; i < model.parameters(); ++i) {
+    u[i] = model.Unit(i, unfollowed.parameters[i].value);
+  }
+  const identify::LocalFit wrong = identify::Refine(model, options, u, true, 100);
+  REQUIRE(wrong.cost > fixture.minimum.cost + 20.0);
+  CHECK(identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options).empty());
+
+  options.curved_valley_ratio = identify::FitOptions{}.curved_valley_ratio;
+  const auto lower = identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options);
+  REQUIRE_FALSE(lower.empty());
+  double previous = -1.0;
+  for (const auto& point : lower) {
+    const double cost = model.ProjectedCost(point.data());
+    CHECK(cost < wrong.cost - 0.5);
+    CHECK(cost >= previous);  // lowest first
+    previous = cost;
+  }
+  const identify::LocalFit found = identify::Refine(model, options, lower.front(), true, 100);
+  CHECK(found.cost == Approx(fixture.minimum.cost).epsilon(1e-4));
+  // From the truth's minimum nothing lies lower.
+  CHECK(identify::CurvedValleyPoints(model, fixture.minimum.u, fixture.minimum.cost, options)
+            .empty());
 }
 
 }  // namespace millkit

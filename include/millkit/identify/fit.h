@@ -133,6 +133,12 @@ struct FitOptions {
   double profile_relax_widening = 1.25;
   int profile_iterations = 3;
   double profile_relax_reach = 16.0;
+  // After the basin hops, a parameter whose straight probes rise more than curved_valley_ratio
+  // times the prediction has its profile followed from the best minimum (identify/uncertainty.h,
+  // CurvedValleyPoints; curved_valley_iterations each); a lower point found is refined, and the
+  // best minimum it reaches counts as one no start reached. 0: not followed.
+  double curved_valley_ratio = 100.0;
+  int curved_valley_iterations = 20;
   // Basin hopping from the best minimum: hops refinements from points hop_radius standard
   // errors away in random directions (seeded by hop_seed); a lower one becomes the best.
   int hops = 4;
