@@ -337,9 +337,16 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
       const double rise = 0.5 * r.squaredNorm() - best_cost;
       flattest = std::min(flattest, rise);
       if (!relax || !(rise >= 0.0)) continue;
-      const std::vector<double> relaxed = relaxer.Step(probe, r, i);
-      const double relaxed_chi2 = (model.ProjectedCost(relaxed.data()) - best_cost) * chi2_per_cost;
-      if (!(implied(probe[i], relaxed_chi2) > options.profile_relax_widening)) continue;
+      // Where the straight probe rises far above the prediction, the valley bends sharply and the
+      // step with the minimum's Jacobian says little: that side is followed in any case.
+      const bool bends =
+          options.curved_valley_ratio > 0.0 && rise > options.curved_valley_ratio * predicted;
+      if (!bends) {
+        const std::vector<double> relaxed = relaxer.Step(probe, r, i);
+        const double relaxed_chi2 =
+            (model.ProjectedCost(relaxed.data()) - best_cost) * chi2_per_cost;
+        if (!(implied(probe[i], relaxed_chi2) > options.profile_relax_widening)) continue;
+      }
       // The valley curves away from the straight line: follow this side of the profile.
       if (relaxed_walks != nullptr) ++*relaxed_walks;
       for (double distance = step; distance <= options.profile_relax_reach * (1.0 + 1e-9);

@@ -127,7 +127,8 @@ struct FitOptions {
   // The profile probes are relaxed: one Gauss–Newton step of the other quantities from each
   // (the Jacobian at the minimum), since the valley may curve away from the straight profile
   // direction. Where a relaxed probe implies a standard error more than profile_relax_widening
-  // times the linearised one, that side of the profile is followed: Levenberg–Marquardt with the
+  // times the linearised one, or the straight probe rises more than curved_valley_ratio times
+  // the prediction, that side of the profile is followed: Levenberg–Marquardt with the
   // parameter held (profile_iterations each) at profile_step × 1, 2, 4, … up to
   // profile_relax_reach standard errors, until χ² passes profile_chi2 or a bound. 0: no relaxing.
   double profile_relax_widening = 1.25;
