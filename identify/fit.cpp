@@ -569,9 +569,11 @@ FitResult FitInNewtonMetres(const driveline::Scene& scene, const std::vector<Osc
   ListMinima(model, search, &result);
   summary.success = true;
   if (lower_found) {
-    summary.warnings.push_back("a probe " + ShortNumber(options.profile_step) +
-                               " standard errors from the best point found a lower cost: the fit "
-                               "had not reached its minimum");
+    summary.warnings.push_back(
+        "a probe around the best point (along a profile, up to " +
+        ShortNumber(options.profile_relax_reach) +
+        " standard errors away, or on a parameter's axis) found a lower cost: the fit had not "
+        "reached its minimum");
   }
   JudgeFit(model, assessment.noise, search.minima, search.best, lower_found, options, &result);
   AddDoubts(assessment, records.size() > 1, &result);
