@@ -169,6 +169,18 @@ std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vec
 
 namespace {
 
+// u moved `distance` along `direction` (unit coordinates); empty when that leaves the unit box
+// (past a bound the parameter cannot go, and that side says nothing about the spread inside).
+std::vector<double> AlongProfile(const std::vector<double>& u, const Eigen::VectorXd& direction,
+                                 double distance) {
+  std::vector<double> point(u);
+  for (Eigen::Index s = 0; s < direction.size(); ++s) {
+    point[s] += distance * direction(s);
+    if (!(point[s] >= 0.0 && point[s] <= 1.0)) return {};
+  }
+  return point;
+}
+
 // One Gauss–Newton step of every fitted quantity but `held` from `point` (projected residuals
 // `r` there), with the column-scaled Jacobian of the minimum; the step is cut back to the unit
 // box. The straight profile direction is the linearisation's; along a curved valley the other
@@ -245,14 +257,7 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
     const double variance = covariance(i, i);
     if (!(variance > 0.0) || !std::isfinite(variance)) continue;
     const Eigen::VectorXd direction = covariance.col(i).head(p) / std::sqrt(variance);
-    const auto along = [&](double distance) {
-      std::vector<double> point(u);
-      for (int s = 0; s < p; ++s) {
-        point[s] += distance * direction(s);
-        if (!(point[s] >= 0.0 && point[s] <= 1.0)) return std::vector<double>();
-      }
-      return point;
-    };
+    const auto along = [&](double distance) { return AlongProfile(u, direction, distance); };
     double steepest = 0.0;
     for (const double sign : {-1.0, 1.0}) {
       const std::vector<double> probe = along(sign * step);
@@ -321,13 +326,7 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
              standard_error;
     };
     const auto along = [&](double sign, double distance) {
-      std::vector<double> point(u);
-      for (int s = 0; s < p; ++s) {
-        point[s] += sign * distance * direction(s);
-        // Past a bound the parameter cannot go; that side says nothing about the spread inside.
-        if (!(point[s] >= 0.0 && point[s] <= 1.0)) return std::vector<double>();
-      }
-      return point;
+      return AlongProfile(u, direction, sign * distance);
     };
     double flattest = std::numeric_limits<double>::infinity();
     for (const double sign : {-1.0, 1.0}) {
