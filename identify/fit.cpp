@@ -53,6 +53,7 @@ void FitOptions::Validate() const {
   require(profile_chi2 > 0.0, "profile_chi2: must be > 0");
   require(profile_restarts >= 0, "profile_restarts: must be >= 0");
   require(profile_relax_widening >= 0.0, "profile_relax_widening: must be >= 0");
+  require(profile_bend_ratio >= 0.0, "profile_bend_ratio: must be >= 0");
   require(profile_iterations >= 1, "profile_iterations: must be >= 1");
   require(profile_relax_reach >= profile_step, "profile_relax_reach: must be >= profile_step");
   require(curved_valley_ratio >= 0.0, "curved_valley_ratio: must be >= 0");

@@ -339,7 +339,7 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
       // Where the straight probe rises far above the prediction, the valley bends sharply and the
       // step with the minimum's Jacobian says little: that side is followed in any case.
       const bool bends =
-          options.curved_valley_ratio > 0.0 && rise > options.curved_valley_ratio * predicted;
+          options.profile_bend_ratio > 0.0 && rise > options.profile_bend_ratio * predicted;
       if (!bends) {
         const std::vector<double> relaxed = relaxer.Step(probe, r, i);
         const double relaxed_chi2 =

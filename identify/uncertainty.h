@@ -67,7 +67,7 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
 // `fitted`, its fitted columns): where the valley curves away from the straight line, the
 // relaxed probe lies lower, and that side of the profile is followed with the parameter held
 // (FitOptions::profile_relax_widening; and where the straight probe rises past
-// curved_valley_ratio times the prediction, since the valley then bends too sharply for a step
+// profile_bend_ratio times the prediction, since the valley then bends too sharply for a step
 // with the minimum's Jacobian to say); each point held at distance d with a profile χ² widens
 // to d / √max(χ², 1). Returns the widening factor per scene slot (1 where none), sets
 // `lower_found` when a probe found a cost below the minimum's (the fit had not reached its

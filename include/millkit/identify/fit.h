@@ -127,11 +127,12 @@ struct FitOptions {
   // The profile probes are relaxed: one Gauss–Newton step of the other quantities from each
   // (the Jacobian at the minimum), since the valley may curve away from the straight profile
   // direction. Where a relaxed probe implies a standard error more than profile_relax_widening
-  // times the linearised one, or the straight probe rises more than curved_valley_ratio times
+  // times the linearised one, or the straight probe rises more than profile_bend_ratio times
   // the prediction, that side of the profile is followed: Levenberg–Marquardt with the
   // parameter held (profile_iterations each) at profile_step × 1, 2, 4, … up to
   // profile_relax_reach standard errors, until χ² passes profile_chi2 or a bound. 0: no relaxing.
   double profile_relax_widening = 1.25;
+  double profile_bend_ratio = 10.0;
   int profile_iterations = 3;
   double profile_relax_reach = 16.0;
   // After the basin hops, a parameter whose straight probes rise more than curved_valley_ratio
