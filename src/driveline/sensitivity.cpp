@@ -191,6 +191,7 @@ class SensitivityPass final : public HybridObserver {
       SetS(j, s);
     }
     z_ = z0;
+    rest_ = nullptr;
   }
 
   void LegEnded(double elapsed, const Phases& phases, const Eigen::VectorXd& z,
@@ -237,6 +238,7 @@ class SensitivityPass final : public HybridObserver {
       const double dt = -(row.dot(S(j)) + surfaces_p_[j].row(surface).dot(z_)) / rate;
       SetS(j, S(j) + jump * dt);
     }
+    rest_ = nullptr;
   }
 
   void BreakpointApplied(double breakpoint, const Eigen::VectorXd& z) override {
@@ -265,6 +267,7 @@ class SensitivityPass final : public HybridObserver {
       SetS(j, s);
     }
     z_ = z;
+    rest_ = nullptr;
   }
 
   void Recorded(int k, const Phases& phases) override {
@@ -417,9 +420,32 @@ class SensitivityPass final : public HybridObserver {
     s_.swap(s_next_);
   }
 
+  // Whether [ỹ; S̃]' = [M̃ ỹ; M̃ S̃ + M̃_j ỹ] is zero in this phase set (s_next_ holds the second
+  // block): a line running steadily before the bite (no relative motion, no load yet) and
+  // sensitivities that do not move it (a gap's position within its play). Nothing moves over a
+  // leg then. Remembered for the same phase set and state until a jump changes S̃. The first
+  // product, M̃ ỹ, decides almost every leg that moves, for a few multiply-adds.
+  bool AtRest(const PhaseSet& data) {
+    if (rest_ == &data && z_ == rest_z_) return true;
+    rest_ = nullptr;
+    y_next_.setZero();
+    for (const Entry& entry : data.sparse) y_next_[entry.row] += entry.value * y_[entry.col];
+    if (!y_next_.isZero(0.0)) return false;
+    s_next_.setZero();
+    double* next = s_next_.data();
+    for (const Entry& entry : data.sparse_p) next[entry.row] += entry.value * y_[entry.col];
+    for (const Entry& entry : data.sparse)
+      s_next_.row(entry.row) += entry.value * s_.row(entry.col);
+    if (!s_next_.isZero(0.0)) return false;
+    rest_ = &data;
+    rest_z_ = z_;
+    return true;
+  }
+
   void Propagate(PhaseSet& data, double tau) {
     if (tau <= 0.0) return;
     y_.noalias() = d_inverse_.asDiagonal() * z_;
+    if (AtRest(data)) return;
     const double pieces = std::ceil(data.norm * tau);
     const bool full_step = std::abs(tau - h_) <= 1e-10 * h_;
     if (full_step && !data.cached) {
@@ -488,7 +514,9 @@ class SensitivityPass final : public HybridObserver {
   bool given_state_;
   std::vector<Eigen::MatrixXd> surfaces_p_;  // G_j (unscaled)
   std::map<Phases, PhaseSet> cache_;
-  PhaseSet* current_ = nullptr;   // the phase set of the latest leg
+  PhaseSet* current_ = nullptr;     // the phase set of the latest leg
+  const PhaseSet* rest_ = nullptr;  // the phase set found at rest (AtRest) with state rest_z_
+  Eigen::VectorXd rest_z_;
   RowMatrix s_;                   // S̃
   Eigen::VectorXd z_;             // the state at the latest stop
   std::vector<int> links_;        // the scene links whose torques' sensitivities are recorded
