@@ -106,6 +106,7 @@ std::string FitJson(const FitResult& result, const std::string& scene_file,
   doc["multistart"] = {{"scan_points", s.scan_points},
                        {"starts", s.starts},
                        {"starts_at_best", s.starts_at_best},
+                       {"escalated", s.escalated},
                        {"minima", minima}};
   doc["summary"] = {{"ceres", s.ceres_brief},
                     {"termination", s.termination},

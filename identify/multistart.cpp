@@ -84,6 +84,18 @@ class Rejoins final : public ceres::IterationCallback {
   bool rejoined_ = false;
 };
 
+// The starts (0 … starts − 1) some fit of which ends within χ² 1 of minima[best] (fixed weights).
+int StartsAtBest(const std::vector<LocalFit>& minima, int best, int starts) {
+  std::vector<bool> reached(starts, false);
+  for (const auto& fit : minima) {
+    if (fit.usable && fit.start >= 0 && fit.start < starts &&
+        2.0 * (fit.cost - minima[best].cost) <= 1.0) {
+      reached[fit.start] = true;
+    }
+  }
+  return static_cast<int>(std::count(reached.begin(), reached.end(), true));
+}
+
 }  // namespace
 
 std::vector<std::vector<double>> ScanStarts(const FitModel& model, const FitConfig& config,
@@ -355,11 +367,14 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
   search_from(config, start);
   if (search.best < 0) return search;
 
-  // A best minimum that leaves the residual unexplained is most often a wrong basin: one more
-  // search, with a scan escalation_factor times as dense, other points and twice the starts.
+  // A best minimum that leaves the residual unexplained is most often a wrong basin; so is one
+  // that fewer than half the starts reach, the others scattered over other valleys (a line with
+  // many valleys, where the best found may be one more of them). One more search, with a scan
+  // escalation_factor times as dense, other points and twice the starts.
   const int fitted = static_cast<int>(model->FittedIndices().size());
   if (options.escalation_factor > 1 &&
-      WorstResidualZ(*model, noise, minima[search.best].u, fitted) > options.misfit_z) {
+      (2 * StartsAtBest(minima, search.best, search.starts) < search.starts ||
+       WorstResidualZ(*model, noise, minima[search.best].u, fitted) > options.misfit_z)) {
     FitConfig wider = config;
     wider.scan_points = config.scan_points * options.escalation_factor;
     wider.starts = config.starts * 2;

@@ -60,10 +60,12 @@ slow+="|Fits with and without the rejoin stop agree"
 # bundled record's verdict ok (38 s), random line 393's verdict (22 s).
 slow+="|shards 1/2 and 2/2 merged write the same table|verdict ok: the bundled scene on its own"
 slow+="|verdict not_converged: a best minimum that only a basin hop reached"
-# Random lines 555, 526, 765 and 712, each fitted twice, with and without the relaxed profile
-# probes or the curved-valley walks; the search's own tests run both walks under the sanitizers.
+# Random lines 555, 526, 765, 712 and 378, each fitted twice, with and without the relaxed
+# profile probes, the curved-valley walks or the second search; the search's own tests run both
+# walks under the sanitizers.
 slow+="|standard errors: a valley that curves away from the straight profile"
 slow+="|verdict not_converged: a lower valley found along a sharply curved one"
 slow+="|standard errors: a profile whose valley bends sharply is followed"
 slow+="|standard errors: a profile that bends 10 to 30 times the prediction is followed"
+slow+="|verdict ok: starts scattered over many valleys run the search again"
 ctest --output-on-failure -j "$(nproc)" -LE package -E "$slow"
