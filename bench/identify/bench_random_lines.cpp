@@ -17,7 +17,10 @@
 // past 9) the record itself puts the truth that far away; only a little above, the standard errors
 // are too small for the misfit's shape there.
 //
-// Usage: bench_random_lines [--cases N (200)] [--first-seed S (1)] [--threads N]
+// --search-seed K adds K to the seeds of the scan's points and of the basin hops: the same lines
+// fitted with other random choices, which shows how much a verdict owes to luck.
+//
+// Usage: bench_random_lines [--cases N (200)] [--first-seed S (1)] [--threads N] [--search-seed K]
 //                           [--derivatives sensitivity|forward|central] [--verbose]
 // Exits 1 when a case throws (printed, counted as crashed), else 0.
 #include <glog/logging.h>
@@ -126,6 +129,7 @@ int main(int argc, char** argv) {
   unsigned long first_seed = 1;
   bool verbose = false;
   int threads = 1;  // > 1: each case is fitted again on this many threads and compared
+  unsigned search_seed = 0;
   FitOptions options;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
@@ -137,18 +141,21 @@ int main(int argc, char** argv) {
       first_seed = std::strtoul(argv[++i], nullptr, 10);
     } else if (flag == "--threads" && i + 1 < argc) {
       threads = std::atoi(argv[++i]);
+    } else if (flag == "--search-seed" && i + 1 < argc) {
+      search_seed = static_cast<unsigned>(std::strtoul(argv[++i], nullptr, 10));
     } else if (flag == "--derivatives" && i + 1 < argc &&
                ParseDerivatives(argv[i + 1], &options.derivatives)) {
       ++i;
     } else {
       std::fprintf(stderr,
-                   "usage: %s [--cases N] [--first-seed S] [--threads N] "
+                   "usage: %s [--cases N] [--first-seed S] [--threads N] [--search-seed K] "
                    "[--derivatives sensitivity|forward|central] [--verbose]\n",
                    argv[0]);
       return 2;
     }
   }
   FLAGS_minloglevel = 3;  // Ceres' glog: a start that fails to simulate is data, not a message
+  options.hop_seed += search_seed;
 
   std::vector<CaseResult> results;
   int crashed = 0;
@@ -159,7 +166,8 @@ int main(int argc, char** argv) {
   for (int k = 0; k < cases; ++k) {
     const unsigned long seed = first_seed + static_cast<unsigned long>(k);
     try {
-      const RandomLineCase c = MakeRandomLineCase(seed);
+      RandomLineCase c = MakeRandomLineCase(seed);
+      c.config.seed += search_seed;
       CaseResult r;
       r.seed = seed;
       r.description = c.description;
@@ -349,7 +357,8 @@ int main(int argc, char** argv) {
                 r.cost_at_truth, r.description.c_str());
   }
   std::printf(
-      "\nReproduce: bench_random_lines --cases %d --first-seed %lu --derivatives %s --verbose\n",
-      cases, first_seed, DerivativesName(options.derivatives));
+      "\nReproduce: bench_random_lines --cases %d --first-seed %lu --search-seed %u --derivatives "
+      "%s --verbose\n",
+      cases, first_seed, search_seed, DerivativesName(options.derivatives));
   return crashed > 0 ? 1 : 0;
 }
