@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <optional>
 #include <random>
 
@@ -22,6 +23,14 @@ bool TimingParameter(const FreeParameter& free) {
   using Kind = driveline::SceneParameter::Kind;
   const auto kind = free.parameter.kind;
   return kind == Kind::kBacklash || kind == Kind::kGapPosition || kind == Kind::kBiteTime;
+}
+
+// Whether two points agree within `distance` in every unit coordinate.
+bool SamePoint(const std::vector<double>& a, const std::vector<double>& b, double distance) {
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!(std::abs(a[i] - b[i]) <= distance)) return false;
+  }
+  return true;
 }
 
 // A step that changes the cost (½ χ² in noise units) by less than this is a stall.
@@ -287,48 +296,79 @@ std::vector<LocalFit> RefineStarts(FitModel* model, const FitOptions& options,
   }
   if (static_cast<int>(not_timing.size()) == model->parameters()) not_timing.clear();
 
-  // Each start gives its continued fit and, when it comes near, its direct one.
-  const auto refine_start = [&](FitModel& copy, int s) {
-    std::vector<LocalFit> found;
-    LocalFit fit;
-    fit.u = starts[s];
-    int stage_number = 0;
-    for (const double divisor : stages) {
-      copy.SetStage(divisor);
-      const bool timing_only = stage_number++ < options.timing_only_stages && divisor != 1.0;
-      fit = Refine(copy, options, fit.u, divisor == 1.0, options.stage_iterations,
-                   timing_only ? not_timing : std::vector<int>{});
-      if (!fit.usable) break;
+  // The starts go through the stages side by side. A start that ends a stage where an earlier
+  // one ended it (options.merge_distance) would go on along the same path: it stops there and
+  // takes that start's continued fit.
+  const int count = static_cast<int>(starts.size());
+  std::vector<LocalFit> continued(count);
+  std::vector<int> joined(count, -1);  // the start whose path this one joined
+  for (int s = 0; s < count; ++s) continued[s].u = starts[s];
+  std::vector<int> going(count);
+  std::iota(going.begin(), going.end(), 0);
+  for (size_t k = 0; k < stages.size() && !going.empty(); ++k) {
+    const double divisor = stages[k];
+    const bool timing_only = static_cast<int>(k) < options.timing_only_stages && divisor != 1.0;
+    std::vector<LocalFit> fits = MapOverCopies<LocalFit>(
+        *model, options.threads, static_cast<int>(going.size()), [&](FitModel& copy, int i) {
+          copy.SetStage(divisor);
+          return Refine(copy, options, continued[going[i]].u, divisor == 1.0,
+                        options.stage_iterations, timing_only ? not_timing : std::vector<int>{});
+        });
+    std::vector<int> still;
+    for (size_t i = 0; i < going.size(); ++i) {
+      const int s = going[i];
+      continued[s] = std::move(fits[i]);
+      if (!continued[s].usable) continue;
+      if (divisor != 1.0 && options.merge_distance > 0.0) {
+        for (const int r : still) {
+          if (SamePoint(continued[s].u, continued[r].u, options.merge_distance)) {
+            joined[s] = r;
+            break;
+          }
+        }
+        if (joined[s] >= 0) continue;
+      }
+      still.push_back(s);
     }
-    fit.start = s;
-    found.reserve(2);
-    found.push_back(std::move(fit));
-    const LocalFit& continued = found.front();  // stays in place: room for two is reserved
-    // The same start refined on the whole window at once. A short stage sees the dampings
-    // poorly, and noise can carry them into the basin of a neighbouring minimum of the whole
-    // window; a fit from a start inside the right basin stays there. A capped try first: it is
-    // finished only when it comes near the continued fit.
-    if (stages.size() > 1) {
-      copy.SetStage(1.0);
-      // Either fit stops early where it comes back to the continued fit's minimum.
-      const LocalFit* known = continued.usable ? &continued : nullptr;
-      LocalFit direct =
-          Refine(copy, options, starts[s], false, options.direct_try_iterations, {}, known);
-      const bool near = direct.usable && direct.cost < options.direct_retry_factor * continued.cost;
-      if (near && !direct.rejoined) {
-        direct = Refine(copy, options, direct.u, true, options.max_iterations, {}, known);
-      }
-      if (near) {
-        direct.start = s;
-        found.push_back(std::move(direct));
-      }
+    going = std::move(still);
+  }
+  for (int s = 0; s < count; ++s) {
+    int root = s;
+    while (joined[root] >= 0) root = joined[root];
+    if (root != s) continued[s] = continued[root];
+    continued[s].start = s;
+  }
+
+  // Each start gives its continued fit and, when it comes near, its direct one: the same start
+  // refined on the whole window at once. A short stage sees the dampings poorly, and noise can
+  // carry them into the basin of a neighbouring minimum of the whole window; a fit from a start
+  // inside the right basin stays there. A capped try first: it is finished only when it comes
+  // near the continued fit.
+  const auto direct_fit = [&](FitModel& copy, int s) {
+    std::vector<LocalFit> found;
+    if (stages.size() <= 1) return found;
+    copy.SetStage(1.0);
+    // Either fit stops early where it comes back to the continued fit's minimum.
+    const LocalFit* known = continued[s].usable ? &continued[s] : nullptr;
+    LocalFit direct =
+        Refine(copy, options, starts[s], false, options.direct_try_iterations, {}, known);
+    const bool near =
+        direct.usable && direct.cost < options.direct_retry_factor * continued[s].cost;
+    if (near && !direct.rejoined) {
+      direct = Refine(copy, options, direct.u, true, options.max_iterations, {}, known);
+    }
+    if (near) {
+      direct.start = s;
+      found.push_back(std::move(direct));
     }
     return found;
   };
   std::vector<LocalFit> minima;
-  for (auto& found : MapOverCopies<std::vector<LocalFit>>(
-           *model, options.threads, static_cast<int>(starts.size()), refine_start)) {
-    for (auto& fit : found) minima.push_back(std::move(fit));
+  std::vector<std::vector<LocalFit>> directs =
+      MapOverCopies<std::vector<LocalFit>>(*model, options.threads, count, direct_fit);
+  for (int s = 0; s < count; ++s) {
+    minima.push_back(std::move(continued[s]));
+    for (auto& fit : directs[s]) minima.push_back(std::move(fit));
   }
   model->SetStage(1.0);
   return minima;

@@ -98,6 +98,11 @@ struct FitOptions {
   double continuation_ratio = 1.189207115002721;
   int timing_only_stages = 1;
   int stage_iterations = 10;
+  // The starts go through the stages side by side; a start that ends a stage before the last
+  // within merge_distance of an earlier start's end, in every unit coordinate (each parameter's
+  // place between its bounds, on its log scale where it has one), would follow the same path:
+  // it stops there and takes that start's continued fit. 0 turns it off.
+  double merge_distance = 1e-6;
   // The direct whole-window fit of a start is finished only when its try, capped at
   // direct_try_iterations, ends below direct_retry_factor times the continued fit's cost.
   double direct_retry_factor = 1.5;
