@@ -20,19 +20,28 @@
 // --search-seed K adds K to the seeds of the scan's points and of the basin hops: the same lines
 // fitted with other random choices, which shows how much a verdict owes to luck.
 //
+// --scipy N fits the first N lines also with SciPy (bench/identify/scipy_fit.py: least_squares
+// over solve_ivp, one local fit, no scan, when /usr/bin/python3 has scipy), from the same start
+// and from the truth, and scores its answers in MillKit's standard errors: wall time,
+// simulations and worst |z| side by side with MillKit's fit.
+//
 // Usage: bench_random_lines [--cases N (200)] [--first-seed S (1)] [--threads N] [--search-seed K]
-//                           [--derivatives sensitivity|forward|central] [--verbose]
+//                           [--derivatives sensitivity|forward|central] [--scipy N] [--verbose]
 // Exits 1 when a case throws (printed, counted as crashed), else 0.
 #include <glog/logging.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -122,6 +131,138 @@ T Quantile(const std::vector<T>& sorted, double q) {
 
 double Share(int part, int whole) { return whole > 0 ? 100.0 * part / whole : 0.0; }
 
+// One of SciPy's local fits of a line.
+struct SciPyFit {
+  bool ran = false;
+  double wall_s = 0.0;
+  long simulations = 0;
+  double worst_z = 0.0;  // |z| in MillKit's standard errors
+  std::string worst_name;
+};
+
+struct SciPyLine {
+  unsigned long seed = 0;
+  std::string verdict;  // MillKit's
+  bool within = false;  // MillKit's
+  double worst_z = 0.0;
+  double wall_s = 0.0;
+  SciPyFit from_start, from_truth;
+  std::string note;  // why SciPy did not run
+};
+
+const std::string kScript = std::string(MILLKIT_SOURCE_DIR) + "/bench/identify/scipy_fit.py";
+
+bool SciPyAvailable() {
+  return std::system("/usr/bin/python3 -c 'import scipy' > /dev/null 2>&1") == 0;
+}
+
+// The line in scipy_fit.py's form: its model as scipy_simulate.load gives it, the record's window,
+// the channels' links and the free parameters with MillKit's standard errors; runs the script
+// and reads its two lines.
+void RunSciPy(const RandomLineCase& c, const FitResult& fit, SciPyLine* line) {
+  const driveline::Scene& scene = c.prior;
+  if (scene.drive || scene.contact != driveline::ContactLaw::kLimited) {
+    line->note = "a drive or another contact law";
+    return;
+  }
+  nlohmann::json model;
+  model["law"] = "limited";
+  model["duration"] = scene.duration_s;
+  model["rate"] = scene.sample_rate_Hz;
+  model["speed"] = scene.initial_speed_rad_per_s;
+  for (const auto& mass : scene.masses) {
+    model["J"].push_back(mass.inertia_kg_m2);
+    model["masses"].push_back(mass.name);
+  }
+  for (const auto& link : scene.links) {
+    if (link.ratio != 1.0) {
+      line->note = "a gear ratio";
+      return;
+    }
+    model["links"].push_back({{"name", link.name},
+                              {"a", link.from},
+                              {"b", link.to},
+                              {"c", link.stiffness_Nm_per_rad},
+                              {"d", link.damping_Nms_per_rad},
+                              {"bl", link.backlash_rad},
+                              {"gp", link.gap_position}});
+  }
+  for (const auto& source : scene.torques) {
+    if (source.times_s.size() != 2) {
+      line->note = "a torque that is not one ramp";
+      return;
+    }
+    model["sources"].push_back({{"m", source.mass},
+                                {"before", source.values_Nm[0]},
+                                {"after", source.values_Nm[1]},
+                                {"start", source.times_s[0]},
+                                {"rise", source.times_s[1] - source.times_s[0]}});
+  }
+  nlohmann::json doc;
+  doc["model"] = model;
+  std::vector<int> columns;
+  for (const auto& channel : c.config.channels) {
+    columns.push_back(c.record.ChannelIndex(channel.column));
+    doc["channels"].push_back(
+        scene.LinkIndex(channel.link.empty() ? channel.column : channel.link));
+  }
+  for (size_t k = 0; k < c.record.time_s.size(); ++k) {
+    const double t = c.record.time_s[k];
+    if (t < c.config.window_start_s || t > c.config.window_end_s) continue;
+    doc["t"].push_back(t);
+  }
+  for (const int column : columns) {
+    nlohmann::json values = nlohmann::json::array();
+    for (size_t k = 0; k < c.record.time_s.size(); ++k) {
+      const double t = c.record.time_s[k];
+      if (t < c.config.window_start_s || t > c.config.window_end_s) continue;
+      values.push_back(c.record.values[column][k]);
+    }
+    doc["y"].push_back(values);
+  }
+  for (size_t i = 0; i < c.config.free.size(); ++i) {
+    const FreeParameter& free = c.config.free[i];
+    const ParameterEstimate& estimate = fit.parameters[i];
+    const bool scored = estimate.identifiable && std::isfinite(estimate.standard_error) &&
+                        estimate.standard_error > 0.0;
+    doc["free"].push_back({{"name", free.parameter.name},
+                           {"lower", free.lower},
+                           {"upper", free.upper},
+                           {"start", free.start},
+                           {"truth", c.truth_values[i]},
+                           {"se", scored ? nlohmann::json(estimate.standard_error) : nullptr}});
+  }
+  const auto path = std::filesystem::temp_directory_path() /
+                    ("millkit_scipy_line_" + std::to_string(c.seed) + ".json");
+  std::ofstream(path) << doc.dump();
+  const std::string command = "/usr/bin/python3 '" + kScript + "' '" + path.string() + "' 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) {
+    line->note = "python3 did not start";
+    std::filesystem::remove(path);
+    return;
+  }
+  std::array<char, 4096> buffer{};
+  std::string output;
+  while (std::fgets(buffer.data(), buffer.size(), pipe) != nullptr) {
+    output += buffer.data();
+    char from[16] = {}, name[256] = {};
+    SciPyFit result;
+    int status = 0;
+    if (std::sscanf(buffer.data(), "SCIPY %15s %lf %ld %d %lf %255s", from, &result.wall_s,
+                    &result.simulations, &status, &result.worst_z, name) == 6) {
+      result.ran = true;
+      result.worst_name = name;
+      (std::string(from) == "start" ? line->from_start : line->from_truth) = result;
+    }
+  }
+  pclose(pipe);
+  std::filesystem::remove(path);
+  if (!line->from_start.ran || !line->from_truth.ran) {
+    line->note = "scipy_fit.py failed: " + output.substr(0, 300);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -130,6 +271,7 @@ int main(int argc, char** argv) {
   bool verbose = false;
   int threads = 1;  // > 1: each case is fitted again on this many threads and compared
   unsigned search_seed = 0;
+  int scipy_lines = 0;
   FitOptions options;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
@@ -141,6 +283,8 @@ int main(int argc, char** argv) {
       first_seed = std::strtoul(argv[++i], nullptr, 10);
     } else if (flag == "--threads" && i + 1 < argc) {
       threads = std::atoi(argv[++i]);
+    } else if (flag == "--scipy" && i + 1 < argc) {
+      scipy_lines = std::atoi(argv[++i]);
     } else if (flag == "--search-seed" && i + 1 < argc) {
       search_seed = static_cast<unsigned>(std::strtoul(argv[++i], nullptr, 10));
     } else if (flag == "--derivatives" && i + 1 < argc &&
@@ -149,13 +293,15 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: %s [--cases N] [--first-seed S] [--threads N] [--search-seed K] "
-                   "[--derivatives sensitivity|forward|central] [--verbose]\n",
+                   "[--derivatives sensitivity|forward|central] [--scipy N] [--verbose]\n",
                    argv[0]);
       return 2;
     }
   }
   FLAGS_minloglevel = 3;  // Ceres' glog: a start that fails to simulate is data, not a message
   options.hop_seed += search_seed;
+  const bool scipy = scipy_lines > 0 && SciPyAvailable();
+  std::vector<SciPyLine> scipy_results;
 
   std::vector<CaseResult> results;
   int crashed = 0;
@@ -252,6 +398,29 @@ int main(int argc, char** argv) {
           }
           r.cost_at_truth = model.ProjectedCost(u.data());
         }
+      }
+      if (scipy && k < scipy_lines && fit.summary.success) {
+        SciPyLine line;
+        line.seed = seed;
+        line.verdict = r.verdict;
+        line.within = r.within;
+        line.worst_z = r.scores.worst_z;
+        line.wall_s = r.wall_s;
+        RunSciPy(c, fit, &line);
+        if (verbose) {
+          if (line.note.empty()) {
+            std::printf(
+                "  [%lu] SciPy from the start: %.1f s, %ld simulations, worst |z| %.3g (%s); from "
+                "the truth: %.1f s, %ld simulations, worst |z| %.3g (%s)\n",
+                seed, line.from_start.wall_s, line.from_start.simulations, line.from_start.worst_z,
+                line.from_start.worst_name.c_str(), line.from_truth.wall_s,
+                line.from_truth.simulations, line.from_truth.worst_z,
+                line.from_truth.worst_name.c_str());
+          } else {
+            std::printf("  [%lu] SciPy not run: %s\n", seed, line.note.c_str());
+          }
+        }
+        scipy_results.push_back(std::move(line));
       }
       if (verbose) {
         std::printf(
@@ -356,9 +525,51 @@ int main(int argc, char** argv) {
                 r.truth_cost, std::abs(r.truth_scores.worst_z), r.truth_scores.worst_name.c_str(),
                 r.cost_at_truth, r.description.c_str());
   }
+  if (scipy_lines > 0 && !scipy) {
+    std::printf("\nSciPy: /usr/bin/python3 has no scipy; not run.\n");
+  } else if (scipy) {
+    std::printf(
+        "\n## SciPy least_squares (trf, 2-point Jacobian) over solve_ivp (LSODA, rtol 1e-6), one "
+        "local fit, on the first %d lines\n\n|z| in MillKit's standard errors; ratio: SciPy's "
+        "wall time over MillKit's whole search from the prior start.\n\n",
+        scipy_lines);
+    std::printf(
+        "| seed | MillKit: verdict, worst \\|z\\|, wall s | SciPy from the start: wall s, runs, "
+        "worst \\|z\\| | from the truth: wall s, runs, worst \\|z\\| | ratio from the start / "
+        "from the truth |\n|---|---|---|---|---|\n");
+    int ran = 0, start_within = 0, truth_within = 0, millkit_good = 0;
+    std::vector<double> start_ratios, truth_ratios;
+    for (const auto& line : scipy_results) {
+      if (!line.note.empty()) {
+        std::printf("| %lu | %s, %.2f, %.2f | not run: %s | | |\n", line.seed, line.verdict.c_str(),
+                    std::abs(line.worst_z), line.wall_s, line.note.c_str());
+        continue;
+      }
+      ++ran;
+      start_within += line.from_start.worst_z <= kWithin ? 1 : 0;
+      truth_within += line.from_truth.worst_z <= kWithin ? 1 : 0;
+      millkit_good += line.within && line.verdict == "ok" ? 1 : 0;
+      start_ratios.push_back(line.from_start.wall_s / line.wall_s);
+      truth_ratios.push_back(line.from_truth.wall_s / line.wall_s);
+      std::printf("| %lu | %s, %.2f, %.2f | %.1f, %ld, %.3g | %.1f, %ld, %.3g | %.0f / %.0f |\n",
+                  line.seed, line.verdict.c_str(), std::abs(line.worst_z), line.wall_s,
+                  line.from_start.wall_s, line.from_start.simulations, line.from_start.worst_z,
+                  line.from_truth.wall_s, line.from_truth.simulations, line.from_truth.worst_z,
+                  start_ratios.back(), truth_ratios.back());
+    }
+    std::sort(start_ratios.begin(), start_ratios.end());
+    std::sort(truth_ratios.begin(), truth_ratios.end());
+    std::printf(
+        "\nOf %d lines: MillKit within 3 SE and ok %d; SciPy within 3 SE from the start %d, from "
+        "the truth %d. SciPy's wall time over MillKit's, median: %.0f× from the start, %.0f× "
+        "from the truth.\n",
+        ran, millkit_good, start_within, truth_within, Quantile(start_ratios, 0.5),
+        Quantile(truth_ratios, 0.5));
+  }
   std::printf(
       "\nReproduce: bench_random_lines --cases %d --first-seed %lu --search-seed %u --derivatives "
-      "%s --verbose\n",
-      cases, first_seed, search_seed, DerivativesName(options.derivatives));
+      "%s%s --verbose\n",
+      cases, first_seed, search_seed, DerivativesName(options.derivatives),
+      scipy_lines > 0 ? (" --scipy " + std::to_string(scipy_lines)).c_str() : "");
   return crashed > 0 ? 1 : 0;
 }
