@@ -2,14 +2,18 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <bit>
 #include <cctype>
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <fstream>
 #include <limits>
 #include <map>
 #include <mutex>
 #include <set>
+#include <sstream>
 #include <unordered_map>
 
 #include "io/invariant.h"
@@ -19,6 +23,7 @@
 #include "millkit/io/input_error.h"
 #include "millkit/io/number_format.h"
 #include "millkit/io/svg_plot.h"
+#include "millkit/version.h"
 #include "numerics/parallel_for.h"
 
 namespace millkit::identify {
@@ -744,14 +749,125 @@ std::optional<CampaignShard> ParseCampaignShard(const std::string& text) {
   return shard;
 }
 
-std::string CampaignPartCsv(const CampaignManifest& manifest, const CampaignShard& shard,
-                            const std::vector<int>& fits,
+namespace {
+
+// 64-bit FNV-1a over everything fed to it; numbers go in as their bits.
+class Fingerprint {
+ public:
+  void Add(std::string_view text) {
+    for (const char c : text) {
+      hash_ ^= static_cast<unsigned char>(c);
+      hash_ *= 0x100000001b3ULL;
+    }
+    Add(static_cast<std::uint64_t>(text.size()));  // "ab","c" is not "a","bc"
+  }
+  void Add(std::uint64_t value) {
+    for (int byte = 0; byte < 8; ++byte) {
+      hash_ ^= (value >> (8 * byte)) & 0xffU;
+      hash_ *= 0x100000001b3ULL;
+    }
+  }
+  void Add(double value) { Add(std::bit_cast<std::uint64_t>(value)); }
+  void Add(int value) { Add(static_cast<std::uint64_t>(static_cast<std::int64_t>(value))); }
+  std::string Hex() const {
+    std::ostringstream out;
+    out << std::hex;
+    out.width(16);
+    out.fill('0');
+    out << hash_;
+    return out.str();
+  }
+
+ private:
+  std::uint64_t hash_ = 0xcbf29ce484222325ULL;
+};
+
+constexpr std::string_view kSettingsPrefix = "# settings ";
+
+// The settings line of a part ("" when it has none) and its line number.
+std::string PartSettings(const std::string& text, int* line) {
+  size_t at = 0;
+  *line = 1;
+  while (at < text.size() && text[at] == '#') {
+    const size_t end = std::min(text.find('\n', at), text.size());
+    const std::string_view comment(text.data() + at, end - at);
+    if (comment.substr(0, kSettingsPrefix.size()) == kSettingsPrefix) {
+      std::string value(comment.substr(kSettingsPrefix.size()));
+      while (!value.empty() && (value.back() == '\r' || value.back() == ' ')) value.pop_back();
+      return value;
+    }
+    at = end + 1;
+    ++*line;
+  }
+  return "";
+}
+
+}  // namespace
+
+std::string CampaignSettings(const driveline::Scene& scene, const CampaignManifest& manifest) {
+  Fingerprint f;
+  f.Add(std::string_view("millkit " MILLKIT_VERSION_STRING));
+  f.Add(scene.duration_s);
+  f.Add(scene.sample_rate_Hz);
+  f.Add(static_cast<int>(scene.contact));
+  f.Add(scene.initial_speed_rad_per_s);
+  f.Add(scene.band_Hz.value_or(-1.0));
+  for (const auto& mass : scene.masses) {
+    f.Add(mass.name);
+    f.Add(mass.inertia_kg_m2);
+  }
+  for (const auto& link : scene.links) {
+    f.Add(link.name);
+    f.Add(link.from);
+    f.Add(link.to);
+    f.Add(link.stiffness_Nm_per_rad);
+    f.Add(link.damping_Nms_per_rad);
+    f.Add(link.backlash_rad);
+    f.Add(link.gap_position);
+    f.Add(link.ratio);
+  }
+  for (const auto& source : scene.torques) {
+    f.Add(source.mass);
+    for (const double t : source.times_s) f.Add(t);
+    for (const double v : source.values_Nm) f.Add(v);
+    f.Add(static_cast<int>(source.times_s.size()));
+  }
+  if (scene.drive) {
+    f.Add(scene.drive->mass);
+    f.Add(scene.drive->speed_ref_rad_per_s);
+    f.Add(scene.drive->kp);
+    f.Add(scene.drive->ki);
+    f.Add(scene.drive->lag_s);
+    f.Add(scene.drive->limit_Nm);
+  }
+  std::map<std::string, std::string> configs;  // each config file's content, read once
+  // A config by its content, not its path: a shard started from another directory names the
+  // same file otherwise.
+  for (const auto& row : manifest.rows) {
+    f.Add(row.time_column);
+    f.Add(static_cast<int>(row.config.empty()));
+    if (row.config.empty()) continue;
+    auto [found, added] = configs.try_emplace(row.config);
+    if (added) {
+      std::ifstream in(row.config, std::ios::binary);
+      std::ostringstream text;
+      text << in.rdbuf();
+      found->second = in ? text.str() : std::string("(unreadable)");
+    }
+    f.Add(found->second);
+  }
+  return f.Hex();
+}
+
+std::string CampaignPartCsv(const CampaignManifest& manifest, const std::string& settings,
+                            const CampaignShard& shard, const std::vector<int>& fits,
                             const std::vector<CampaignFitOutcome>& outcomes) {
   MILLKIT_CHECK(fits.size() == outcomes.size(), "one outcome per fit of the part");
   const std::string shard_text = std::to_string(shard.index) + "/" + std::to_string(shard.count);
   std::string text = "# millkit identify campaign part " + shard_text + " of " +
                      Quote(manifest.source) + ": " + std::to_string(fits.size()) + " of " +
                      std::to_string(manifest.fits.size()) + " fits (merge with --merge)\n";
+  text += std::string(kSettingsPrefix) + settings + "\n";
   for (size_t j = 0; j < kPartColumns.size(); ++j) text += (j ? "," : "") + kPartColumns[j];
   text += '\n';
   for (size_t k = 0; k < fits.size(); ++k) {
@@ -777,7 +893,7 @@ std::string CampaignPartCsv(const CampaignManifest& manifest, const CampaignShar
 }
 
 std::vector<CampaignFitOutcome> MergeCampaignParts(
-    const CampaignManifest& manifest,
+    const CampaignManifest& manifest, const std::string& settings,
     const std::vector<std::pair<std::string, std::string>>& parts) {
   const size_t fit_count = manifest.fits.size();
   std::vector<CampaignFitOutcome> outcomes(fit_count);
@@ -804,6 +920,21 @@ std::vector<CampaignFitOutcome> MergeCampaignParts(
                        ": not a campaign part (written by identify --campaign --shard k/N): the "
                        "header is not shard,fit,line,file,time,stand,group,verdict,reason,"
                        "parameter,unit,value,standard_error");
+    }
+    int settings_line = 0;
+    const std::string part_settings = PartSettings(parts[p].second, &settings_line);
+    if (part_settings.empty()) {
+      throw InputError(source +
+                       ": no '# settings' line before the header (a part written by an older "
+                       "millkit?): fit the shard again");
+    }
+    if (part_settings != settings) {
+      throw InputError(source + ": line " + std::to_string(settings_line) +
+                       ": fitted with other settings (" + part_settings + ") than this merge's (" +
+                       settings +
+                       "): the scene, a fit config, a time column or the millkit version "
+                       "differs; give every shard and the merge the same scene, manifest and "
+                       "--config");
     }
     // A part may have no row: a shard or rank beyond the number of fits.
     std::optional<CampaignShard> part_shard;

@@ -219,6 +219,8 @@ void RunCampaign(const IdentifyArgs& args) {
   const identify::CampaignManifest& manifest = in->manifest;
   identify::CampaignOptions options;
   options.threads = args.threads;
+  // What the fits depend on: every part carries it, and the merge (and rank 0) checks it.
+  const std::string settings = identify::CampaignSettings(scene, manifest);
 
   if (!args.merge.empty()) {
     std::vector<std::pair<std::string, std::string>> parts;
@@ -233,8 +235,8 @@ void RunCampaign(const IdentifyArgs& args) {
       if (!in) throw InputError("option --merge: '" + path + "' cannot be read");
       parts.emplace_back(path, text.str());
     }
-    identify::CampaignResult result =
-        identify::AssembleCampaign(scene, manifest, identify::MergeCampaignParts(manifest, parts));
+    identify::CampaignResult result = identify::AssembleCampaign(
+        scene, manifest, identify::MergeCampaignParts(manifest, settings, parts));
     WriteCampaign(
         args, scene, manifest, result,
         "merged from " + std::to_string(parts.size()) + (parts.size() == 1 ? " part" : " parts"));
@@ -253,7 +255,7 @@ void RunCampaign(const IdentifyArgs& args) {
     AtomicFile part(args.out);
     const auto outcomes = identify::RunCampaignFits(scene, manifest, fits, options);
     progress.Finish();
-    part.stream() << identify::CampaignPartCsv(manifest, mine, fits, outcomes);
+    part.stream() << identify::CampaignPartCsv(manifest, settings, mine, fits, outcomes);
     part.Commit();
     int not_ok = 0;
     for (const auto& outcome : outcomes) {
@@ -282,7 +284,7 @@ void RunCampaign(const IdentifyArgs& args) {
   } else {
     std::string part;
     try {
-      part = identify::CampaignPartCsv(manifest, mine, fits,
+      part = identify::CampaignPartCsv(manifest, settings, mine, fits,
                                        identify::RunCampaignFits(scene, manifest, fits, options));
     } catch (...) {
       error = std::current_exception();
@@ -295,7 +297,7 @@ void RunCampaign(const IdentifyArgs& args) {
     for (int r = 0; r < mpi.size(); ++r) {
       parts.emplace_back("MPI rank " + std::to_string(r), shares[r]);
     }
-    outcomes = identify::MergeCampaignParts(manifest, parts);
+    outcomes = identify::MergeCampaignParts(manifest, settings, parts);
   }
   progress.Finish();
   const identify::CampaignResult result = identify::AssembleCampaign(scene, manifest, outcomes);

@@ -351,6 +351,33 @@ TEST_CASE("shards 1/2 and 2/2 merged write the same table, trend and plots as on
         one.stdout_text.substr(one.stdout_text.find('\n')));  // the trend lines
 }
 
+TEST_CASE("the settings a part carries change with the scene and the config, not their paths",
+          "[campaign][shard]") {
+  const Campaign campaign;
+  const auto fit_toml = campaign.dir / "fit.toml";
+  WriteText(fit_toml, "[fit]\nscan = 16\n");
+  const auto settings = [&](const driveline::Scene& scene, const std::string& config) {
+    return CampaignSettings(scene, LoadCampaignManifest(campaign.manifest_path, config, ""));
+  };
+  const std::string base = settings(campaign.scene, fit_toml.string());
+  CHECK(base.size() == 16);
+  CHECK(base.find_first_not_of("0123456789abcdef") == std::string::npos);
+  CHECK(settings(campaign.scene, fit_toml.string()) == base);
+  // The same file by another path: the same settings.
+  CHECK(settings(campaign.scene, (campaign.dir / "." / "fit.toml").string()) == base);
+  // No config (the default fit), another config text, a damping one ulp off, a torque knot moved.
+  CHECK(settings(campaign.scene, "") != base);
+  WriteText(campaign.dir / "fit2.toml", "[fit]\nscan = 17\n");
+  CHECK(settings(campaign.scene, (campaign.dir / "fit2.toml").string()) != base);
+  driveline::Scene changed = campaign.scene;
+  changed.links[0].damping_Nms_per_rad =
+      std::nextafter(changed.links[0].damping_Nms_per_rad, 1e300);
+  CHECK(settings(changed, fit_toml.string()) != base);
+  changed = campaign.scene;
+  changed.torques[0].times_s.back() += 1e-6;
+  CHECK(settings(changed, fit_toml.string()) != base);
+}
+
 TEST_CASE("a bad --shard value exits 2 naming the option and writes nothing",
           "[campaign][shard][bad_input]") {
   const Campaign campaign;
@@ -400,6 +427,23 @@ TEST_CASE("bad --merge parts exit 2 naming the part and its line, and write noth
   REQUIRE(last != std::string::npos);
   WriteText(part("garbled.csv"), garbled.replace(last, 4, ",\"gap\",\"rad\",1e-3,abc"));
   WriteText(part("table.csv"), "file,time,stand\n");
+  // A part without its settings line, and one fitted after the scene changed (another damping
+  // start): the merge cannot tell what its numbers were fitted with.
+  std::string unsettled = ReadText(part("p22.csv"));
+  const auto settings_line = unsettled.find("# settings ");
+  REQUIRE(settings_line != std::string::npos);
+  WriteText(
+      part("unsettled.csv"),
+      unsettled.erase(settings_line, unsettled.find('\n', settings_line) + 1 - settings_line));
+  std::string scene_text = ReadText(campaign.scene_path);
+  const std::string damping = "damping = 5000.0";
+  REQUIRE(scene_text.find(damping) != std::string::npos);
+  WriteText(campaign.scene_path,
+            std::string(scene_text)
+                .replace(scene_text.find(damping), damping.size(), "damping = 5200.0"));
+  REQUIRE(RunMillkit(campaign.Cli("--shard 2/2 --out '" + part("changed.csv") + "'")).exit_code ==
+          3);
+  WriteText(campaign.scene_path, scene_text);
   struct Case {
     std::vector<std::string> parts;
     std::string message;
@@ -407,9 +451,11 @@ TEST_CASE("bad --merge parts exit 2 naming the part and its line, and write noth
   const std::vector<Case> cases = {
       {{"p12.csv"}, "manifest.csv: line 3 ('records/x1.csv', fit 1) is in no part"},
       {{"p12.csv", "p22.csv", "p12.csv"}, "is already in"},
-      {{"p12.csv", "other.csv"}, "other.csv: line 3: fit 1, manifest line 3"},
-      {{"p12.csv", "garbled.csv"}, "garbled.csv: line 3, column 'standard_error': 'abc' is not a"},
-      {{"p12.csv", "p23.csv"}, "p23.csv: line 3, column 'shard': a part of 3 shards, but"},
+      {{"p12.csv", "other.csv"}, "other.csv: line 4: fit 1, manifest line 3"},
+      {{"p12.csv", "garbled.csv"}, "garbled.csv: line 4, column 'standard_error': 'abc' is not a"},
+      {{"p12.csv", "p23.csv"}, "p23.csv: line 4, column 'shard': a part of 3 shards, but"},
+      {{"p12.csv", "unsettled.csv"}, "unsettled.csv: no '# settings' line before the header"},
+      {{"p12.csv", "changed.csv"}, "changed.csv: line 2: fitted with other settings ("},
       {{"table.csv"}, "table.csv: line 1: not a campaign part"},
       {{"p12.csv", "missing.csv"}, "option --merge: '"},
   };

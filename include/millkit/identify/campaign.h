@@ -181,22 +181,31 @@ struct CampaignShard {
 // "k/N" with decimal 1 ≤ k ≤ N; none for anything else.
 std::optional<CampaignShard> ParseCampaignShard(const std::string& text);
 
-// A partial result (docs/identify.md, "Shards"): a '#' comment line, then the header
+// What a campaign's fits depend on besides the manifest's lines and the records, as 16 hex
+// digits (64-bit FNV-1a): the scene as loaded, bit for bit (every mass, link, torque knot, so
+// torque tables too, and the drive), each row's fit config (its content) and time column, and
+// MillKit's version. Every part carries it and the merge refuses a part with another:
+// a scene, config or program that changed between the shards and the merge.
+std::string CampaignSettings(const driveline::Scene& scene, const CampaignManifest& manifest);
+
+// A partial result (docs/identify.md, "Shards"): a '#' comment line, a line
+// "# settings <CampaignSettings>", then the header
 // shard,fit,line,file,time,stand,group,verdict,reason,parameter,unit,value,standard_error and one
 // line per estimate of each row of `fits` (one line with empty parameter, unit, value and standard
 // error for a row without any), text cells quoted, numbers shortest round-trip (nan, inf, -inf
 // when not finite) so they read back bit for bit. `outcomes` in the order of `fits`.
-std::string CampaignPartCsv(const CampaignManifest& manifest, const CampaignShard& shard,
-                            const std::vector<int>& fits,
+std::string CampaignPartCsv(const CampaignManifest& manifest, const std::string& settings,
+                            const CampaignShard& shard, const std::vector<int>& fits,
                             const std::vector<CampaignFitOutcome>& outcomes);
 
 // One outcome per fit of `manifest` from parts written by CampaignPartCsv: (source name, text)
 // pairs. Throws InputError naming the part and its line when a part is not one (header, cell
-// count, a number), its lines do not match the manifest (line, file, time, stand, group: parts of
-// another manifest), its shards disagree (k/N with another N, a fit not of its shard), a fit comes
-// in two parts or a parameter twice in one row, or a fit or a row of one is in no part.
+// count, a number), was fitted with other settings than `settings` (CampaignSettings) or has
+// none, its lines do not match the manifest (line, file, time, stand, group: parts of another
+// manifest), its shards disagree (k/N with another N, a fit not of its shard), a fit comes in two
+// parts or a parameter twice in one row, or a fit or a row of one is in no part.
 std::vector<CampaignFitOutcome> MergeCampaignParts(
-    const CampaignManifest& manifest,
+    const CampaignManifest& manifest, const std::string& settings,
     const std::vector<std::pair<std::string, std::string>>& parts);
 
 // Days since the manifest's epoch of each fit: the mean of its rows' times.
