@@ -29,6 +29,7 @@
 //                           [--derivatives sensitivity|forward|central] [--scipy N] [--verbose]
 // Exits 1 when a case throws (printed, counted as crashed), else 0.
 #include <glog/logging.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -38,7 +39,6 @@
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -49,6 +49,7 @@
 #include "identify/random_line.h"
 #include "millkit/identify/fit.h"
 #include "millkit/identify/fit_config.h"
+#include "millkit/io/output_files.h"
 
 using namespace millkit;
 using namespace millkit::identify;
@@ -232,14 +233,39 @@ void RunSciPy(const RandomLineCase& c, const FitResult& fit, SciPyLine* line) {
                            {"truth", c.truth_values[i]},
                            {"se", scored ? nlohmann::json(estimate.standard_error) : nullptr}});
   }
-  const auto path = std::filesystem::temp_directory_path() /
-                    ("millkit_scipy_line_" + std::to_string(c.seed) + ".json");
-  std::ofstream(path) << doc.dump();
+  // A new file of its own (mkstemp: never another file), removed after the run and, through the
+  // project's cleanup handler, on Ctrl-C.
+  std::string name =
+      (std::filesystem::temp_directory_path() / "millkit_scipy_line_XXXXXX").string();
+  const int fd = mkstemp(name.data());
+  if (fd < 0) {
+    line->note = "no temporary file in " + std::filesystem::temp_directory_path().string();
+    return;
+  }
+  const std::filesystem::path path(name);
+  RegisterTemporaryFile(path);
+  const std::string text = doc.dump();
+  bool written = true;
+  for (size_t at = 0; written && at < text.size();) {
+    const ssize_t n = write(fd, text.data() + at, text.size() - at);
+    written = n > 0;
+    at += written ? static_cast<size_t>(n) : 0;
+  }
+  close(fd);
+  const auto remove_file = [&path] {
+    std::filesystem::remove(path);
+    ReleaseTemporaryFile(path);
+  };
+  if (!written) {
+    line->note = "cannot write " + path.string();
+    remove_file();
+    return;
+  }
   const std::string command = "/usr/bin/python3 '" + kScript + "' '" + path.string() + "' 2>&1";
   FILE* pipe = popen(command.c_str(), "r");
   if (pipe == nullptr) {
     line->note = "python3 did not start";
-    std::filesystem::remove(path);
+    remove_file();
     return;
   }
   std::array<char, 4096> buffer{};
@@ -257,7 +283,7 @@ void RunSciPy(const RandomLineCase& c, const FitResult& fit, SciPyLine* line) {
     }
   }
   pclose(pipe);
-  std::filesystem::remove(path);
+  remove_file();
   if (!line->from_start.ran || !line->from_truth.ran) {
     line->note = "scipy_fit.py failed: " + output.substr(0, 300);
   }
@@ -301,6 +327,7 @@ int main(int argc, char** argv) {
   FLAGS_minloglevel = 3;  // Ceres' glog: a start that fails to simulate is data, not a message
   options.hop_seed += search_seed;
   const bool scipy = scipy_lines > 0 && SciPyAvailable();
+  if (scipy) InstallTemporaryFileCleanup();
   std::vector<SciPyLine> scipy_results;
 
   std::vector<CaseResult> results;
