@@ -111,7 +111,19 @@ MpiSession::MpiSession() {
 
 MpiSession::~MpiSession() {
 #if MILLKIT_WITH_MPI
-  if (initialised_) MPI_Finalize();
+  if (!initialised_) return;
+  if (std::uncaught_exceptions() > 0) {
+    // Leaving on an error: the program prints it after this. MPI_Finalize waits for every rank,
+    // so it runs at exit, after the print; finalized here, a failed rank could exit (and mpirun
+    // stop the job) before another rank has printed why it stops too.
+    std::atexit([] {
+      int finalized = 0;
+      MPI_Finalized(&finalized);
+      if (!finalized) MPI_Finalize();
+    });
+    return;
+  }
+  MPI_Finalize();
 #endif
 }
 

@@ -27,7 +27,9 @@ class MpiSession {
  public:
   // Initialises MPI when built with it and started by mpirun; else a single-process session.
   MpiSession();
-  ~MpiSession();  // MPI_Finalize when this session initialised MPI
+  // MPI_Finalize when this session initialised MPI; when left by an exception, at exit instead
+  // (after the program has printed the error: every rank says why it stops).
+  ~MpiSession();
   MpiSession(const MpiSession&) = delete;
   MpiSession& operator=(const MpiSession&) = delete;
 
