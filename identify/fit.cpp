@@ -406,8 +406,9 @@ bool DescribeBest(const FitModel& model, const Search& search, const RecordAsses
   summary.fitted_quantities = static_cast<int>(fitted.size());
   summary.noise_scale = std::sqrt(2.0 * summary.cost / std::max(1.0, dof));
   Eigen::MatrixXd covariance = Covariance(jac, fitted, summary.noise_scale);
-  const auto widening = ProfileWidening(model, u, jac, fitted, covariance, summary.cost,
-                                        summary.noise_scale, options, search.probes, lower_found);
+  const auto widening =
+      ProfileWidening(model, u, jac, fitted, covariance, summary.cost, summary.noise_scale, options,
+                      search.probes, search.bound_walks, lower_found);
   std::string widened;
   for (int i = 0; i < model.parameters(); ++i) {
     if (widening[i] > 1.0 && std::isfinite(widening[i])) {
@@ -428,7 +429,7 @@ bool DescribeBest(const FitModel& model, const Search& search, const RecordAsses
     ParameterEstimate e = EstimateFrame(model, i);
     e.value = model.Physical(i, u[i]);
     e.standard_error = std::sqrt(covariance(i, i)) * model.slot(i).map.PhysicalPerUnit(u[i]);
-    e.at_bound = u[i] <= 1e-9 || u[i] >= 1.0 - 1e-9;
+    e.at_bound = u[i] <= kAtBound || u[i] >= 1.0 - kAtBound;
     result->parameters.push_back(e);
   }
   FlagUnidentifiable(model, jac, fitted, summary.noise_scale, options, result);

@@ -437,8 +437,8 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
   search.best = lowest();
   // A valley that bends sharply within a few standard errors: followed, a lower one along it.
   model->set_activity("following curved valleys");
-  const std::vector<std::vector<double>> curved =
-      CurvedValleyPoints(*model, minima[search.best].u, minima[search.best].cost, options);
+  const std::vector<std::vector<double>> curved = CurvedValleyPoints(
+      *model, minima[search.best].u, minima[search.best].cost, options, &search.bound_walks);
   if (!curved.empty()) {
     LocalFit fit = Refine(*model, options, curved.front(), true, options.max_iterations);
     fit.start = -1;

@@ -68,7 +68,8 @@ struct Search {
   int starts = 0;
   int scan_points = 0;
   bool escalated = false;
-  std::vector<ProfileProbe> probes;  // the axis probes around the best minimum
+  std::vector<ProfileProbe> probes;       // the axis probes around the best minimum
+  std::vector<ProfileProbe> bound_walks;  // held fits inward from a bound (CurvedValleyPoints)
 };
 
 // The whole search from the start point (unit coordinates). The scan, the preselection, the

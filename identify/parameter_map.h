@@ -20,6 +20,9 @@
 namespace millkit::identify {
 
 inline constexpr double kLogSpan = 4.0;
+// A unit coordinate within this of 0 or 1 is at its bound: Levenberg–Marquardt moves φ, and
+// u = (1 + sin φ)/2 is flat at a bound, so a fit pressed against one stops a few 1e-9 short.
+inline constexpr double kAtBound = 1e-6;
 
 class ParameterMap {
  public:

@@ -67,19 +67,26 @@ void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
     if (fitted[j] >= p) continue;  // gains and offsets are reported, not flagged
     const int s = fitted[j];
     auto& estimate = result->parameters[s];
-    const double width = estimate.upper - estimate.lower;
-    const double limit = options.unidentifiable_fraction * width;
-    // noise/‖column‖ is in unit coordinates; dp/du converts it.
-    const double per_unit = model.slot(s).map.PhysicalPerUnit(model.Unit(s, estimate.value));
-    const double alone = norms[j] > 0.0 ? noise_scale / norms[j] * per_unit
-                                        : std::numeric_limits<double>::infinity();
+    // On the scale the parameter is fitted on (unit coordinates: a log scale for a scale
+    // parameter with wide bounds), where the bound range is 1: a damping of 1e4 ± 2e4 near the
+    // bottom of [1e4, 1e6] spans most of its range, however small 2e4 is against 1e6.
+    const ParameterMap& map = model.slot(s).map;
+    const double per_unit = map.PhysicalPerUnit(model.Unit(s, estimate.value));
+    const double limit = options.unidentifiable_fraction;
+    const auto range = [&] {
+      return ShortNumber(options.unidentifiable_fraction) + " of its bound range [" +
+             ShortNumber(estimate.lower) + ", " + ShortNumber(estimate.upper) + "]" +
+             (map.log_scale() ? " on the log scale it is fitted on" : "");
+    };
+    // noise/‖column‖ is in unit coordinates.
+    const double alone =
+        norms[j] > 0.0 ? noise_scale / norms[j] : std::numeric_limits<double>::infinity();
     if (!(alone <= limit)) {
       estimate.identifiable = false;
       estimate.why_not =
           "the record hardly depends on it: even with every other quantity known "
           "its standard error would be " +
-          ShortNumber(alone) + ", more than " + ShortNumber(options.unidentifiable_fraction) +
-          " of its bound width " + ShortNumber(width);
+          ShortNumber(alone * per_unit) + ", more than " + range();
       continue;
     }
     for (int k = 0; k < sv.size(); ++k) {
@@ -90,11 +97,10 @@ void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
                            "against other parameters";
       }
     }
-    if (estimate.identifiable && !(estimate.standard_error <= limit)) {
+    if (estimate.identifiable && !(estimate.standard_error / per_unit <= limit)) {
       estimate.identifiable = false;
-      estimate.why_not = "its standard error " + ShortNumber(estimate.standard_error) +
-                         " exceeds " + ShortNumber(options.unidentifiable_fraction) +
-                         " of its bound width " + ShortNumber(width);
+      estimate.why_not =
+          "its standard error " + ShortNumber(estimate.standard_error) + " exceeds " + range();
     }
   }
 }
@@ -169,6 +175,9 @@ std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vec
 
 namespace {
 
+// The first point of a walk inward from a bound, as a fraction of the range (then doubled).
+constexpr double kBoundWalkFirst = 1.0 / 16.0;
+
 // u moved `distance` along `direction` (unit coordinates); empty when that leaves the unit box
 // (past a bound the parameter cannot go, and that side says nothing about the spread inside).
 std::vector<double> AlongProfile(const std::vector<double>& u, const Eigen::VectorXd& direction,
@@ -237,7 +246,8 @@ class ProfileRelaxer {
 
 std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
                                                     const std::vector<double>& u, double cost,
-                                                    const FitOptions& options) {
+                                                    const FitOptions& options,
+                                                    std::vector<ProfileProbe>* bound_walks) {
   std::vector<std::vector<double>> lower;
   Eigen::MatrixXd covariance;
   double noise_scale = 0.0;
@@ -278,11 +288,26 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
       }
     }
   }
+  // A parameter at a bound: the minimum is the bound's, not the misfit's, and its linearisation
+  // says nothing of the inside. Its profile is followed inward, held at 1/16 … 1/2 of its range.
+  const size_t curved_walks = held.size();
+  for (int i = 0; i < p; ++i) {
+    const bool low = u[i] <= kAtBound;
+    if (!low && u[i] < 1.0 - kAtBound) continue;
+    for (double reach = kBoundWalkFirst; reach <= 0.5; reach *= 2.0) {
+      std::vector<double> start(u);
+      start[i] = low ? reach : 1.0 - reach;
+      held.push_back({i, std::move(start)});
+    }
+  }
   const std::vector<LocalFit> walked = MapOverCopies<LocalFit>(
       model, options.threads, static_cast<int>(held.size()), [&](const FitModel& copy, int k) {
         return Refine(copy, options, held[k].start, false, options.curved_valley_iterations,
                       {held[k].slot});
       });
+  for (size_t k = curved_walks; k < held.size(); ++k) {
+    if (walked[k].usable) bound_walks->push_back({held[k].slot, walked[k].u, walked[k].cost});
+  }
   // χ² more than 1 below the minimum's: another valley, not the misfit's roughness.
   const double below = cost - 0.5 * noise_scale * noise_scale;
   std::vector<const LocalFit*> found;
@@ -299,7 +324,8 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
                                     const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted,
                                     const Eigen::MatrixXd& covariance, double best_cost,
                                     double noise_scale, const FitOptions& options,
-                                    const std::vector<ProfileProbe>& probes, bool* lower_found,
+                                    const std::vector<ProfileProbe>& probes,
+                                    const std::vector<ProfileProbe>& bound_walks, bool* lower_found,
                                     int* relaxed_walks) {
   const int p = model.parameters();
   std::vector<double> widening(p, 1.0);
@@ -380,6 +406,11 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
       const double implied_axis =
           std::abs(model.Physical(i, probe.u[i]) - estimate) / std::sqrt(std::max(chi2, 1e-12));
       widening[i] = std::max(widening[i], implied_axis / standard_error);
+    }
+    for (const auto& walk : bound_walks) {
+      const double chi2 = (walk.cost - best_cost) * chi2_per_cost;
+      if (chi2 < options.profile_chi2)
+        widening[i] = std::max(widening[i], implied(walk.u[i], chi2));
     }
   }
   return widening;

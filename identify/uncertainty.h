@@ -53,10 +53,13 @@ std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vec
 // (cost `cost`), the others refitted (curved_valley_iterations of Levenberg–Marquardt, on
 // options.threads workers). Returns the held points whose χ² is more than 1 below the
 // minimum's, lowest first: a lower valley along a curved one, which the starts and the hops
-// missed.
+// missed. A parameter at a bound (within kAtBound in unit coordinates) has its profile followed
+// inward: held at 1/16, 1/8, 1/4 and 1/2 of its range from the bound, the others refitted the
+// same way; those held fits go to `bound_walks` (slot, point, cost) as well.
 std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
                                                     const std::vector<double>& u, double cost,
-                                                    const FitOptions& options);
+                                                    const FitOptions& options,
+                                                    std::vector<ProfileProbe>* bound_walks);
 
 // The profile check: for each scene parameter i, θ moves along its profile
 // direction C e_i / √C_ii by ± profile_step (in standard errors); the linearisation predicts the
@@ -69,14 +72,18 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
 // (FitOptions::profile_relax_widening; and where the straight probe rises past
 // profile_bend_ratio times the prediction, since the valley then bends too sharply for a step
 // with the minimum's Jacobian to say); each point held at distance d with a profile χ² widens
-// to d / √max(χ², 1). Returns the widening factor per scene slot (1 where none), sets
+// to d / √max(χ², 1). Every point of `bound_walks` (CurvedValleyPoints) with a χ² below
+// profile_chi2 widens every parameter p it moved by d_p to d_p / √max(χ², 1): in the
+// quadratic picture the linearisation draws, no point at χ² lies further than √χ² standard
+// errors in any parameter. Returns the widening factor per scene slot (1 where none), sets
 // `lower_found` when a probe found a cost below the minimum's (the fit had not reached its
 // minimum), and counts the followed sides in `relaxed_walks` when given.
 std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,
                                     const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted,
                                     const Eigen::MatrixXd& covariance, double best_cost,
                                     double noise_scale, const FitOptions& options,
-                                    const std::vector<ProfileProbe>& probes, bool* lower_found,
+                                    const std::vector<ProfileProbe>& probes,
+                                    const std::vector<ProfileProbe>& bound_walks, bool* lower_found,
                                     int* relaxed_walks = nullptr);
 
 // Flags a parameter not identifiable where neighbouring axis probes have the same cost: the

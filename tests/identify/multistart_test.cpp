@@ -6,6 +6,7 @@
 #include "identify/fit_model.h"
 #undef CHECK
 
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <random>
@@ -146,11 +147,12 @@ TEST_CASE("The profile check follows a valley that curves away from the straight
   int walks = -1;
   const auto straight =
       identify::ProfileWidening(model, minimum.u, jacobian, fitted, covariance, cost, noise_scale,
-                                straight_only, {}, &lower, &walks);
+                                straight_only, {}, {}, &lower, &walks);
   CHECK_FALSE(lower);
   CHECK(walks == 0);
-  const auto relaxed = identify::ProfileWidening(model, minimum.u, jacobian, fitted, covariance,
-                                                 cost, noise_scale, options, {}, &lower, &walks);
+  const auto relaxed =
+      identify::ProfileWidening(model, minimum.u, jacobian, fitted, covariance, cost, noise_scale,
+                                options, {}, {}, &lower, &walks);
   CHECK_FALSE(lower);
   CHECK(walks >= 1);
   for (int i = 0; i < p; ++i) {
@@ -192,10 +194,12 @@ TEST_CASE("A sharply curved valley is followed down to a lower one", "[fit]") {
   }
   const identify::LocalFit wrong = identify::Refine(model, options, u, true, 100);
   REQUIRE(wrong.cost > fixture.minimum.cost + 20.0);
-  CHECK(identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options).empty());
+  std::vector<identify::ProfileProbe> bound_walks;
+  CHECK(identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options, &bound_walks).empty());
 
   options.curved_valley_ratio = identify::FitOptions{}.curved_valley_ratio;
-  const auto lower = identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options);
+  const auto lower =
+      identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options, &bound_walks);
   REQUIRE_FALSE(lower.empty());
   double previous = -1.0;
   for (const auto& point : lower) {
@@ -207,8 +211,50 @@ TEST_CASE("A sharply curved valley is followed down to a lower one", "[fit]") {
   const identify::LocalFit found = identify::Refine(model, options, lower.front(), true, 100);
   CHECK(found.cost == Approx(fixture.minimum.cost).epsilon(1e-4));
   // From the truth's minimum nothing lies lower.
-  CHECK(identify::CurvedValleyPoints(model, fixture.minimum.u, fixture.minimum.cost, options)
+  CHECK(identify::CurvedValleyPoints(model, fixture.minimum.u, fixture.minimum.cost, options,
+                                     &bound_walks)
             .empty());
+}
+
+// Random line 883 (5 masses, one channel, three gaps; a seed the defaults were not tuned on):
+// the search ended in a valley χ² 55 above the truth's, the damping of the motor's coupling
+// pressed against its lower bound and 12 standard errors off. Its straight profiles do not bend
+// enough for a curved-valley walk. Walked inward from that bound, with the damping held at 1/16,
+// 1/8, 1/4 and 1/2 of its range and the others refitted, the profile leads to a lower valley.
+TEST_CASE("A parameter at its bound has its profile followed inward", "[fit]") {
+  const LineFromTruth fixture(883);
+  const identify::FitModel& model = fixture.model;
+  const identify::FitOptions options;
+  // Where the search ended before the walk (minima[] of its fit.json).
+  const std::vector<std::pair<std::string, double>> ended = {
+      {"spindle1.damping", 2.66e5},     {"spindle1.backlash", 0.0024321},
+      {"motor_hub2.damping", 16326.0},  {"motor_hub2.backlash", 0.00061417},
+      {"hub2_hub3.damping", 5582.9},    {"spindle4.damping", 7122.9},
+      {"spindle4.backlash", 0.0023843}, {"bite_time", 0.056697}};
+  REQUIRE(model.parameters() == static_cast<int>(ended.size()));
+  std::vector<double> u(model.parameters());
+  for (int i = 0; i < model.parameters(); ++i) {
+    REQUIRE(model.slot(i).name == ended[i].first);
+    u[i] = std::clamp(model.Unit(i, ended[i].second), 0.0, 1.0);
+  }
+  const identify::LocalFit wrong = identify::Refine(model, options, u, true, 100);
+  REQUIRE(wrong.usable);
+  REQUIRE(wrong.u[2] <= identify::kAtBound);  // motor_hub2.damping at its lower bound
+  REQUIRE(wrong.cost > fixture.minimum.cost + 20.0);
+
+  std::vector<identify::ProfileProbe> walks;
+  const auto lower = identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options, &walks);
+  REQUIRE(walks.size() == 4);
+  for (size_t k = 0; k < walks.size(); ++k) {
+    CHECK(walks[k].slot == 2);
+    CHECK(walks[k].u[2] == Approx(std::ldexp(1.0, static_cast<int>(k) - 4)));  // 1/16 … 1/2
+  }
+  REQUIRE_FALSE(lower.empty());
+  CHECK(model.ProjectedCost(lower.front().data()) < wrong.cost - 1.0);
+  // From the truth's minimum, where nothing is at a bound, there is no walk.
+  walks.clear();
+  identify::CurvedValleyPoints(model, fixture.minimum.u, fixture.minimum.cost, options, &walks);
+  CHECK(walks.empty());
 }
 
 // Two starts whose continuations end a stage at the same point go on as one

@@ -118,7 +118,8 @@ struct FitOptions {
 
   // Identifiability: a parameter is flagged when the column-scaled Jacobian is rank-deficient
   // in its direction (reciprocal condition below rank_tolerance) or its standard error exceeds
-  // unidentifiable_fraction of its bound width.
+  // unidentifiable_fraction of its bound range on the scale it is fitted on (a log scale for a
+  // damping, stiffness or inertia whose bounds span a factor of 4 or more).
   double rank_tolerance = 1e-7;
   double unidentifiable_fraction = 0.25;
   // The profile check of the standard errors probes ± profile_step standard errors, and each
@@ -142,8 +143,10 @@ struct FitOptions {
   double profile_relax_reach = 16.0;
   // After the basin hops, a parameter whose straight probes rise more than curved_valley_ratio
   // times the prediction has its profile followed from the best minimum (identify/uncertainty.h,
-  // CurvedValleyPoints; curved_valley_iterations each); a lower point found is refined, and the
-  // best minimum it reaches counts as one no start reached. 0: not followed.
+  // CurvedValleyPoints; curved_valley_iterations each); so has, inward, a parameter at one of
+  // its bounds, and each point held there widens every standard error it implies (a point at χ²
+  // moved by d: d / √max(χ², 1)). A lower point found is refined, and the best minimum it
+  // reaches counts as one no start reached. 0: neither is followed.
   double curved_valley_ratio = 100.0;
   int curved_valley_iterations = 20;
   // Basin hopping from the best minimum: hops refinements from points hop_radius standard
