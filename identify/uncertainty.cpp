@@ -336,6 +336,7 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
   const double chi2_per_cost = 2.0 / (noise_scale * noise_scale);
   const bool relax = options.profile_relax_widening > 0.0;
   const ProfileRelaxer relaxer(jacobian, fitted, p);
+  std::vector<ProfileProbe> followed;  // the points held on followed profiles
   for (int i = 0; i < p; ++i) {
     const double variance = covariance(i, i);
     if (!(variance > 0.0) || !std::isfinite(variance)) continue;
@@ -384,6 +385,7 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
         if (chi2 < -1.0) *lower_found = true;
         if (!(chi2 < options.profile_chi2)) break;
         widening[i] = std::max(widening[i], implied(start[i], chi2));
+        followed.push_back({i, held.u, held.cost});
       }
     }
     if (flattest < 0.0) {
@@ -407,10 +409,25 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
           std::abs(model.Physical(i, probe.u[i]) - estimate) / std::sqrt(std::max(chi2, 1e-12));
       widening[i] = std::max(widening[i], implied_axis / standard_error);
     }
-    for (const auto& walk : bound_walks) {
-      const double chi2 = (walk.cost - best_cost) * chi2_per_cost;
-      if (chi2 < options.profile_chi2)
-        widening[i] = std::max(widening[i], implied(walk.u[i], chi2));
+  }
+  // A point held on a followed profile or on a walk inward from a bound moved the other
+  // parameters too. In the quadratic picture the linearisation draws, no point at χ² lies
+  // further than √χ² standard errors in any parameter: one within profile_chi2 that does widens
+  // that parameter's error to its distance / √max(χ², 1).
+  for (int j = 0; j < p; ++j) {
+    const double variance = covariance(j, j);
+    if (!(variance > 0.0) || !std::isfinite(variance) || !std::isfinite(widening[j])) continue;
+    const double standard_error = std::sqrt(variance) * model.slot(j).map.PhysicalPerUnit(u[j]);
+    const double estimate = model.Physical(j, u[j]);
+    for (const std::vector<ProfileProbe>* points :
+         std::initializer_list<const std::vector<ProfileProbe>*>{&followed, &bound_walks}) {
+      for (const ProfileProbe& point : *points) {
+        const double chi2 = (point.cost - best_cost) * chi2_per_cost;
+        if (!(chi2 < options.profile_chi2)) continue;
+        const double distance = std::abs(model.Physical(j, point.u[j]) - estimate);
+        widening[j] =
+            std::max(widening[j], distance / std::sqrt(std::max(chi2, 1.0)) / standard_error);
+      }
     }
   }
   return widening;

@@ -72,10 +72,10 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
 // (FitOptions::profile_relax_widening; and where the straight probe rises past
 // profile_bend_ratio times the prediction, since the valley then bends too sharply for a step
 // with the minimum's Jacobian to say); each point held at distance d with a profile χ² widens
-// to d / √max(χ², 1). Every point of `bound_walks` (CurvedValleyPoints) with a χ² below
-// profile_chi2 widens every parameter p it moved by d_p to d_p / √max(χ², 1): in the
-// quadratic picture the linearisation draws, no point at χ² lies further than √χ² standard
-// errors in any parameter. Returns the widening factor per scene slot (1 where none), sets
+// to d / √max(χ², 1). Every such point, and every point of `bound_walks` (CurvedValleyPoints),
+// with a χ² below profile_chi2 widens every parameter p it moved by d_p to d_p / √max(χ², 1):
+// in the quadratic picture the linearisation draws, no point at χ² lies further than √χ²
+// standard errors in any parameter. Returns the widening factor per scene slot (1 where none), sets
 // `lower_found` when a probe found a cost below the minimum's (the fit had not reached its
 // minimum), and counts the followed sides in `relaxed_walks` when given.
 std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,

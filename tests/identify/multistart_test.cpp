@@ -54,6 +54,29 @@ struct LineFromTruth {
   identify::LocalFit minimum;
 };
 
+// The linearisation at a line's minimum from the truth: what the profile check starts from.
+struct Linearised {
+  explicit Linearised(const LineFromTruth& line) {
+    const identify::FitModel& model = line.model;
+    const identify::FitOptions options;
+    REQUIRE(line.minimum.converged);
+    Eigen::VectorXd r;
+    std::vector<identify::Nuisance> nuisance;
+    REQUIRE(model.ProjectedResiduals(line.minimum.u.data(), &r, &nuisance));
+    REQUIRE(model.FullJacobian(line.minimum.u, nuisance, options.derivative_step,
+                               options.derivatives, &r, &jacobian));
+    fitted = model.FittedIndices();
+    cost = 0.5 * r.squaredNorm();
+    noise_scale = std::sqrt(2.0 * cost / static_cast<double>(model.residuals() - fitted.size()));
+    covariance = identify::Covariance(jacobian, fitted, noise_scale);
+  }
+  Eigen::MatrixXd jacobian;
+  std::vector<int> fitted;
+  double cost = 0.0;
+  double noise_scale = 0.0;
+  Eigen::MatrixXd covariance;
+};
+
 // The Mahalanobis length of a − b (unit coordinates) under the precision of `at` (angles).
 double Length(const std::vector<double>& a, const std::vector<double>& b,
               const identify::LocalFit& at) {
@@ -128,18 +151,12 @@ TEST_CASE("The profile check follows a valley that curves away from the straight
   const identify::LocalFit& minimum = fixture.minimum;
   const identify::FitOptions options;
   const int p = model.parameters();
-  REQUIRE(minimum.converged);
-  Eigen::VectorXd r;
-  Eigen::MatrixXd jacobian;
-  std::vector<identify::Nuisance> nuisance;
-  REQUIRE(model.ProjectedResiduals(minimum.u.data(), &r, &nuisance));
-  REQUIRE(model.FullJacobian(minimum.u, nuisance, options.derivative_step, options.derivatives, &r,
-                             &jacobian));
-  const auto fitted = model.FittedIndices();
-  const double cost = 0.5 * r.squaredNorm();
-  const double noise_scale =
-      std::sqrt(2.0 * cost / static_cast<double>(model.residuals() - fitted.size()));
-  const Eigen::MatrixXd covariance = identify::Covariance(jacobian, fitted, noise_scale);
+  const Linearised at(fixture);
+  const Eigen::MatrixXd& jacobian = at.jacobian;
+  const std::vector<int>& fitted = at.fitted;
+  const double cost = at.cost;
+  const double noise_scale = at.noise_scale;
+  const Eigen::MatrixXd& covariance = at.covariance;
 
   identify::FitOptions straight_only;
   straight_only.profile_relax_widening = 0.0;
@@ -171,6 +188,54 @@ TEST_CASE("The profile check follows a valley that curves away from the straight
       CHECK(off / relaxed[i] < 3.0);
     } else {
       CHECK(off / relaxed[i] < 3.0);
+    }
+  }
+}
+
+// A point held on a walk (here one inward from a bound, given as such) moved parameters by d at
+// a χ² Δ above the minimum: under the linearisation no point at Δ lies further than √Δ
+// standard errors in any parameter, so each error widens to d / √max(Δ, 1), the held
+// parameter's and the others'. A point past profile_chi2 says nothing; the parameters it did
+// not move keep their widening.
+TEST_CASE("A held point widens every standard error it moved further than its chi2 allows",
+          "[fit]") {
+  const LineFromTruth fixture(555);
+  const identify::FitModel& model = fixture.model;
+  const Linearised at(fixture);
+  identify::FitOptions options;
+  options.profile_relax_widening = 0.0;  // no profile followed: only the given point widens
+  // Two linearly mapped parameters (unit steps are physical ones): the held one and another.
+  std::vector<int> linear;
+  for (int i = 0; i < model.parameters(); ++i) {
+    if (!model.slot(i).map.log_scale()) linear.push_back(i);
+  }
+  REQUIRE(linear.size() >= 2);
+  const int slot = linear[0];
+  const int other = linear[1];
+  bool lower = false;
+  const auto without =
+      identify::ProfileWidening(model, fixture.minimum.u, at.jacobian, at.fitted, at.covariance,
+                                at.cost, at.noise_scale, options, {}, {}, &lower);
+  const auto held_at = [&](double chi2) {
+    identify::ProfileProbe point{slot, fixture.minimum.u,
+                                 at.cost + 0.5 * chi2 * at.noise_scale * at.noise_scale};
+    point.u[slot] += 6.0 * std::sqrt(at.covariance(slot, slot));     // 6 standard errors
+    point.u[other] -= 4.0 * std::sqrt(at.covariance(other, other));  // and 4 in another
+    return identify::ProfileWidening(model, fixture.minimum.u, at.jacobian, at.fitted,
+                                     at.covariance, at.cost, at.noise_scale, options, {}, {point},
+                                     &lower);
+  };
+  const auto near = held_at(4.0);  // at χ² 4: 3 and 2 times the linearised errors
+  const auto far = held_at(30.0);  // past profile_chi2 (25)
+  for (int i = 0; i < model.parameters(); ++i) {
+    INFO(model.slot(i).name << ": without x" << without[i] << ", near x" << near[i]);
+    CHECK(far[i] == without[i]);
+    if (i == slot) {
+      CHECK(near[i] == Approx(std::max(3.0, without[i])).epsilon(1e-9));
+    } else if (i == other) {
+      CHECK(near[i] == Approx(std::max(2.0, without[i])).epsilon(1e-9));
+    } else {
+      CHECK(near[i] == without[i]);
     }
   }
 }

@@ -136,7 +136,8 @@ struct FitOptions {
   // times the linearised one, or the straight probe rises more than profile_bend_ratio times
   // the prediction, that side of the profile is followed: Levenberg–Marquardt with the
   // parameter held (profile_iterations each) at profile_step × 1, 2, 4, … up to
-  // profile_relax_reach standard errors, until χ² passes profile_chi2 or a bound. 0: no relaxing.
+  // profile_relax_reach standard errors, until χ² passes profile_chi2 or a bound; each point
+  // held at χ² widens every parameter it moved by d to d / √max(χ², 1). 0: no relaxing.
   double profile_relax_widening = 1.25;
   double profile_bend_ratio = 10.0;
   int profile_iterations = 3;
