@@ -409,15 +409,13 @@ bool DescribeBest(const FitModel& model, const Search& search, const RecordAsses
   const auto widening =
       ProfileWidening(model, u, jac, fitted, covariance, summary.cost, summary.noise_scale, options,
                       search.probes, search.bound_walks, lower_found);
+  const Eigen::MatrixXd linearised = covariance;
+  WidenAlongProfiles(widening, &covariance);
   std::string widened;
   for (int i = 0; i < model.parameters(); ++i) {
-    if (widening[i] > 1.0 && std::isfinite(widening[i])) {
-      covariance.row(i) *= widening[i];
-      covariance.col(i) *= widening[i];
-      if (widening[i] > 1.05) {
-        widened +=
-            (widened.empty() ? "" : ", ") + model.slot(i).name + " x" + ShortNumber(widening[i]);
-      }
+    const double factor = std::sqrt(covariance(i, i) / linearised(i, i));
+    if (factor > 1.05) {
+      widened += (widened.empty() ? "" : ", ") + model.slot(i).name + " x" + ShortNumber(factor);
     }
   }
   if (!widened.empty()) {

@@ -433,6 +433,17 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
   return widening;
 }
 
+void WidenAlongProfiles(const std::vector<double>& widening, Eigen::MatrixXd* covariance) {
+  const Eigen::MatrixXd given = *covariance;
+  for (size_t i = 0; i < widening.size(); ++i) {
+    const auto s = static_cast<Eigen::Index>(i);
+    if (widening[i] > 1.0 && std::isfinite(widening[i]) && given(s, s) > 0.0) {
+      *covariance +=
+          (widening[i] * widening[i] - 1.0) / given(s, s) * given.col(s) * given.col(s).transpose();
+    }
+  }
+}
+
 void FlagPlateaus(const FitModel& model, const std::vector<ProfileProbe>& probes,
                   FitResult* result) {
   for (int i = 0; i < model.parameters(); ++i) {

@@ -86,6 +86,14 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
                                     const std::vector<ProfileProbe>& bound_walks, bool* lower_found,
                                     int* relaxed_walks = nullptr);
 
+// Widens `covariance` (scene slots first, as Covariance) by ProfileWidening's factors. A
+// profile flatter than the linearisation widens that parameter's spread by w; the others keep
+// their spread given it (their regression on it and what is left), so whatever is correlated
+// with it widens too: C += (w² − 1) c_i c_iᵀ / C_ii for every slot i with 1 < w < ∞, each term
+// from the covariance as given. Its own variance becomes at least w² C_ii, and a quantity with
+// correlation ρ to it gets C_jj (1 + (w² − 1) ρ²).
+void WidenAlongProfiles(const std::vector<double>& widening, Eigen::MatrixXd* covariance);
+
 // Flags a parameter not identifiable where neighbouring axis probes have the same cost: the
 // record does not change over that range (a gap that never closes there), so the local standard
 // error describes only one side.

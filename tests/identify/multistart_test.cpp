@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "identify/multistart.h"
@@ -238,6 +239,37 @@ TEST_CASE("A held point widens every standard error it moved further than its ch
       CHECK(near[i] == without[i]);
     }
   }
+}
+
+// A widened parameter carries what is correlated with it: its own spread ×w, a quantity with
+// correlation ρ to it ×√(1 + (w² − 1) ρ²), their covariance ×w² (its regression on the widened
+// one kept), an uncorrelated one untouched. A factor of 1 or ∞ (a lower cost found) widens
+// nothing.
+TEST_CASE("Widening a parameter's error widens what is correlated with it", "[fit]") {
+  Eigen::MatrixXd covariance(3, 3);
+  covariance << 4.0, 1.2, 0.0,  // standard errors 2, 1, 3; correlation 0.6 between the first two
+      1.2, 1.0, 0.0,            //
+      0.0, 0.0, 9.0;
+  Eigen::MatrixXd widened = covariance;
+  identify::WidenAlongProfiles({3.0, 1.0, 1.0}, &widened);
+  CHECK(widened(0, 0) == Approx(9.0 * 4.0));
+  CHECK(widened(1, 1) == Approx(1.0 + 8.0 * 0.36));
+  CHECK(widened(0, 1) == Approx(9.0 * 1.2));
+  CHECK(widened(1, 0) == widened(0, 1));
+  CHECK(widened(2, 2) == 9.0);
+  CHECK(widened(0, 2) == 0.0);
+  // Two at once: each term from the covariance as given, whatever the order of the slots.
+  Eigen::MatrixXd both = covariance;
+  identify::WidenAlongProfiles({3.0, 2.0, 1.0}, &both);
+  const Eigen::MatrixXd expected = covariance +
+                                   8.0 / 4.0 * covariance.col(0) * covariance.col(0).transpose() +
+                                   3.0 / 1.0 * covariance.col(1) * covariance.col(1).transpose();
+  CHECK((both - expected).norm() < 1e-12);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> spectrum(both);
+  CHECK(spectrum.eigenvalues().minCoeff() > 0.0);
+  Eigen::MatrixXd same = covariance;
+  identify::WidenAlongProfiles({1.0, std::numeric_limits<double>::infinity(), 1.0}, &same);
+  CHECK(same == covariance);
 }
 
 // Random line 526 (3 masses, one channel, a 17.7 mrad gap): the search without the curved-valley
