@@ -61,6 +61,15 @@ constexpr int kAdcBits = 12;
 constexpr int kOversample = 8;
 constexpr double kPriorDampingFactor = 1.6;
 constexpr double kPriorGapFactor = 1.4;
+// The variants (random_line.h).
+constexpr unsigned long kVariantStream = 0x9E3779B97F4A7C15UL;
+constexpr double kMinDriveBandwidth_Hz = 5.0;
+constexpr double kMaxDriveBandwidth_Hz = 20.0;
+constexpr double kUnreachedDriveLimit_Nm = 1e12;
+constexpr double kWidePriorDampingFactor = 3.0;
+constexpr double kWidePriorGapFactor = 2.0;
+constexpr double kPriorStiffnessFactor = 1.3;
+constexpr double kStiffnessBoundFactor = 2.0;
 
 // Uniform draws built on the generator's raw output, identical on every platform.
 class Draw {
@@ -218,6 +227,18 @@ std::string Format(const char* format, double value) {
   return text;
 }
 
+// Fills c->truth_values from c->config; returns the names of those outside their bounds.
+std::string TruthValues(RandomLineCase* c) {
+  std::string outside;
+  c->truth_values.clear();
+  for (const auto& free : c->config.free) {
+    const double value = free.parameter.Get(c->truth);
+    c->truth_values.push_back(value);
+    if (value < free.lower || value > free.upper) outside += " " + free.parameter.name;
+  }
+  return outside;
+}
+
 // One draw of the whole case; throws SolverFailure when the record cannot be simulated.
 RandomLineCase DrawCase(unsigned long seed, Draw& draw) {
   RandomLineCase c;
@@ -348,14 +369,10 @@ RandomLineCase DrawCase(unsigned long seed, Draw& draw) {
     spec.channels[k].offset_Nm = offset_fraction[k] * peak;
   }
   c.record = GenerateRecord(truth, spec);
+  c.record_spec = spec;
 
   c.config = DefaultFitConfig(prior, c.record);
-  std::string outside;
-  for (const auto& free : c.config.free) {
-    const double value = free.parameter.Get(truth);
-    c.truth_values.push_back(value);
-    if (value < free.lower || value > free.upper) outside += " " + free.parameter.name;
-  }
+  const std::string outside = TruthValues(&c);
 
   // The description.
   std::string d = std::to_string(truth.masses.size()) + " masses, " + topology.kind + " (";
@@ -386,6 +403,51 @@ RandomLineCase DrawCase(unsigned long seed, Draw& draw) {
   return c;
 }
 
+void AddDrive(Draw& draw, RandomLineCase* c) {
+  const double bandwidth =
+      2.0 * M_PI * draw.LogUniform(kMinDriveBandwidth_Hz, kMaxDriveBandwidth_Hz);
+  driveline::Drive drive;
+  drive.mass = 0;
+  drive.speed_ref_rad_per_s = c->truth.initial_speed_rad_per_s;
+  drive.kp = c->truth.masses[0].inertia_kg_m2 * bandwidth;
+  drive.ki = drive.kp * bandwidth / 4.0;
+  drive.lag_s = 0.1 / bandwidth;
+  drive.limit_Nm = kUnreachedDriveLimit_Nm;
+  c->truth.drive = c->prior.drive = drive;
+  c->record = GenerateRecord(c->truth, c->record_spec);
+  c->description += Format("; speed-PI drive on the motor at %.1f Hz", bandwidth / (2.0 * M_PI));
+}
+
+void WidenPrior(Draw& draw, RandomLineCase* c) {
+  for (size_t l = 0; l < c->prior.links.size(); ++l) {
+    auto& link = c->prior.links[l];
+    const auto& truth = c->truth.links[l];
+    link.damping_Nms_per_rad =
+        truth.damping_Nms_per_rad *
+        draw.LogUniform(1.0 / kWidePriorDampingFactor, kWidePriorDampingFactor);
+    if (truth.backlash_rad > 0.0) {
+      link.backlash_rad =
+          truth.backlash_rad * draw.LogUniform(1.0 / kWidePriorGapFactor, kWidePriorGapFactor);
+    }
+  }
+  c->config = DefaultFitConfig(c->prior, c->record);
+  c->description += "; prior dampings within x3, gaps within x2";
+}
+
+void FreeStiffness(Draw& draw, RandomLineCase* c) {
+  const int l = draw.Integer(0, static_cast<int>(c->prior.links.size()) - 1);
+  auto& link = c->prior.links[l];
+  link.stiffness_Nm_per_rad *= draw.LogUniform(1.0 / kPriorStiffnessFactor, kPriorStiffnessFactor);
+  FreeParameter free;
+  free.parameter = driveline::ParseSceneParameter(c->prior, link.name + ".stiffness", "variant");
+  free.start = link.stiffness_Nm_per_rad;
+  free.lower = free.start / kStiffnessBoundFactor;
+  free.upper = free.start * kStiffnessBoundFactor;
+  free.scan = true;  // as a [[free]] table gets by default
+  c->config.free.push_back(free);
+  c->description += "; " + link.name + ".stiffness fitted";
+}
+
 }  // namespace
 
 std::vector<double> ElasticModesHz(const driveline::Scene& scene) {
@@ -407,6 +469,41 @@ RandomLineCase MakeRandomLineCase(unsigned long seed) {
   throw std::runtime_error("random line seed " + std::to_string(seed) + ": " +
                            std::to_string(kCaseDraws) +
                            " draws in a row failed to simulate; last: " + last_failure);
+}
+
+RandomLineCase MakeRandomLineCase(unsigned long seed, RandomLineVariant variant) {
+  RandomLineCase c = MakeRandomLineCase(seed);
+  Draw draw(seed ^ kVariantStream);
+  switch (variant) {
+    case RandomLineVariant::kBase:
+      return c;
+    case RandomLineVariant::kDrive:
+      AddDrive(draw, &c);
+      break;
+    case RandomLineVariant::kWidePrior:
+      WidenPrior(draw, &c);
+      break;
+    case RandomLineVariant::kStiffness:
+      FreeStiffness(draw, &c);
+      break;
+  }
+  TruthValues(&c);
+  return c;
+}
+
+bool ParseRandomLineVariant(const std::string& name, RandomLineVariant* variant) {
+  static const std::pair<const char*, RandomLineVariant> kNames[] = {
+      {"base", RandomLineVariant::kBase},
+      {"drive", RandomLineVariant::kDrive},
+      {"wide-prior", RandomLineVariant::kWidePrior},
+      {"stiffness", RandomLineVariant::kStiffness}};
+  for (const auto& [text, value] : kNames) {
+    if (name == text) {
+      *variant = value;
+      return true;
+    }
+  }
+  return false;
 }
 
 }  // namespace millkit::identify

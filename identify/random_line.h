@@ -23,6 +23,15 @@
 //    12-bit ADC, no recorder filter.
 //  - The prior: every damping × a log-uniform factor in [1/1.6, 1.6], every gap × [1/1.4, 1.4],
 //    the nominal bite time.
+//
+// Variants check the fit on lines this draw never makes. Each takes the base case of the seed
+// and changes it with draws from a second generator (seeded from the seed), so the base case,
+// and every result measured on it, stays as it was:
+//  - kDrive: a speed-PI drive on the motor, bandwidth ω log-uniform in 5–20 Hz (kp = J_motor ω,
+//    ki = kp ω / 4, lag 0.1 / ω, no torque limit reached), truth and prior alike; the record
+//    made again with the same spec. The load is taken up over tenths of a second.
+//  - kWidePrior: the prior's dampings off by up to ×3 and its gaps by up to ×2.
+//  - kStiffness: one link's stiffness fitted too (the prior's × [1/1.3, 1.3], bounds ÷2 to ×2).
 #pragma once
 
 #include <string>
@@ -31,11 +40,14 @@
 #include "millkit/driveline/scene.h"
 #include "millkit/identify/fit_config.h"
 #include "millkit/identify/oscillogram.h"
+#include "millkit/identify/record_generator.h"
 
 namespace millkit::identify {
 
 inline constexpr double kMinModeHz = 15.0;
 inline constexpr double kMaxModeHz = 120.0;
+
+enum class RandomLineVariant { kBase, kDrive, kWidePrior, kStiffness };
 
 struct RandomLineCase {
   unsigned long seed = 0;
@@ -46,11 +58,17 @@ struct RandomLineCase {
   Oscillogram record;
   FitConfig config;                  // DefaultFitConfig(prior, record): what a new user gets
   std::vector<double> truth_values;  // true value of each config.free parameter, same order
+  RecordSpec record_spec;            // what the record was made with
 };
 
 // Always returns a case: a draw whose record cannot be simulated is redrawn from the same
 // generator. Throws std::runtime_error only if 20 draws in a row fail (never seen in 500 seeds).
 RandomLineCase MakeRandomLineCase(unsigned long seed);
+// The seed's base case, changed as the variant says; the drive variant throws SolverFailure when
+// its record cannot be simulated (never seen in 400 seeds).
+RandomLineCase MakeRandomLineCase(unsigned long seed, RandomLineVariant variant);
+// "base", "drive", "wide-prior", "stiffness"; false for any other name.
+bool ParseRandomLineVariant(const std::string& name, RandomLineVariant* variant);
 
 // Elastic natural frequencies (Hz, ascending) of the undamped line with every gap closed
 // (millkit/driveline/natural_frequencies.h without the rigid-body mode).

@@ -41,21 +41,72 @@ std::vector<double> Autocorrelation(const std::vector<double>& x, int lags) {
   return rho;
 }
 
-int QuietStretchEnd(const Oscillogram& record, const std::vector<int>& columns) {
-  const int n = static_cast<int>(record.time_s.size());
+namespace {
+
+// The least-squares line through samples [0, m) of y (times centred for conditioning) and the
+// residuals about it.
+struct QuietLine {
+  double time_mean = 0.0, level = 0.0, slope = 0.0;
+  std::vector<double> residual;
+  double At(double t) const { return level + slope * (t - time_mean); }
+};
+
+QuietLine FitQuietLine(const std::vector<double>& t, const std::vector<double>& y, int m) {
+  QuietLine line;
+  for (int k = 0; k < m; ++k) {
+    line.time_mean += t[k];
+    line.level += y[k];
+  }
+  line.time_mean /= m;
+  line.level /= m;
+  double stt = 0.0, sty = 0.0;
+  for (int k = 0; k < m; ++k) {
+    stt += (t[k] - line.time_mean) * (t[k] - line.time_mean);
+    sty += (t[k] - line.time_mean) * (y[k] - line.level);
+  }
+  line.slope = stt > 0.0 ? sty / stt : 0.0;
+  line.residual.resize(m);
+  for (int k = 0; k < m; ++k) line.residual[k] = y[k] - line.At(t[k]);
+  return line;
+}
+
+// Where one channel's response starts (n when it never leaves its initial level).
+int ChannelOnset(const std::vector<double>& t, const std::vector<double>& y) {
+  const int n = static_cast<int>(y.size());
+  const double initial = Median(std::vector<double>(y.begin(), y.begin() + std::min(n, 5)));
+  double excursion = 0.0;
+  for (const double v : y) excursion = std::max(excursion, std::abs(v - initial));
+  if (!(excursion > 0.0) || !std::isfinite(excursion)) return n;
   int onset = n;
-  for (const int column : columns) {
-    const auto& y = record.values[column];
-    const double initial = Median(std::vector<double>(y.begin(), y.begin() + std::min(n, 5)));
-    double excursion = 0.0;
-    for (const double v : y) excursion = std::max(excursion, std::abs(v - initial));
-    if (!(excursion > 0.0) || !std::isfinite(excursion)) continue;
-    for (int k = 0; k < n; ++k) {
-      if (std::abs(y[k] - initial) > kOnsetFraction * excursion) {
-        onset = std::min(onset, k);
-        break;
-      }
+  for (int k = 0; k < n; ++k) {
+    if (std::abs(y[k] - initial) > kOnsetFraction * excursion) {
+      onset = k;
+      break;
     }
+  }
+  // A slow response reaches its first tenth long after it began, and the stretch before that
+  // holds part of it. The first half of the stretch is the reference: the response starts where
+  // the record leaves that half's straight line by kOnsetSigmas times its RMS.
+  const int half = onset / 2;
+  if (half < kMinQuietSamples) return onset;
+  const QuietLine line = FitQuietLine(t, y, half);
+  double sum = 0.0;
+  for (const double r : line.residual) sum += r * r;
+  // No channel is taken to be quieter than the noise floor (a noise-free record's roundoff).
+  const double threshold =
+      kOnsetSigmas * std::max(std::sqrt(sum / (half - 2)), kNoiseFloorFraction * excursion);
+  for (int k = half; k < onset; ++k) {
+    if (std::abs(y[k] - line.At(t[k])) > threshold) return k;
+  }
+  return onset;
+}
+
+}  // namespace
+
+int QuietStretchEnd(const Oscillogram& record, const std::vector<int>& columns) {
+  int onset = static_cast<int>(record.time_s.size());
+  for (const int column : columns) {
+    onset = std::min(onset, ChannelOnset(record.time_s, record.values[column]));
   }
   return static_cast<int>((1.0 - kQuietMargin) * onset);
 }
@@ -66,29 +117,11 @@ ChannelNoise EstimateChannelNoise(const Oscillogram& record, int column, int qui
   const auto& t = record.time_s;
   ChannelNoise noise;
   if (quiet_end >= kMinQuietSamples) {
-    // Least-squares line through the quiet stretch (times centred for conditioning).
     const int m = quiet_end;
-    double tm = 0.0, ym = 0.0;
-    for (int k = 0; k < m; ++k) {
-      tm += t[k];
-      ym += y[k];
-    }
-    tm /= m;
-    ym /= m;
-    double stt = 0.0, sty = 0.0;
-    for (int k = 0; k < m; ++k) {
-      stt += (t[k] - tm) * (t[k] - tm);
-      sty += (t[k] - tm) * (y[k] - ym);
-    }
-    const double slope = stt > 0.0 ? sty / stt : 0.0;
+    const QuietLine line = FitQuietLine(t, y, m);
     double sum = 0.0;
-    std::vector<double> detrended(m);
-    for (int k = 0; k < m; ++k) {
-      const double r = y[k] - ym - slope * (t[k] - tm);
-      detrended[k] = r;
-      sum += r * r;
-    }
-    noise.autocorrelation = Autocorrelation(detrended, std::min(kMaxCorrelationLags, m / 4));
+    for (const double r : line.residual) sum += r * r;
+    noise.autocorrelation = Autocorrelation(line.residual, std::min(kMaxCorrelationLags, m / 4));
     noise.sigma_Nm = std::sqrt(sum / (m - 2));
     noise.dof = m - 2;
     noise.from_quiet_stretch = true;

@@ -9,7 +9,10 @@
 // kQuietMargin of them, detrended by a straight line; σ² = Σ residual² / (m − 2). The response
 // starts where a channel first leaves its initial level (median of its first samples) by
 // kOnsetFraction of its largest excursion: at the noise levels (≤ 2 % of the peak) that
-// is ≥ 5 σ, which noise alone does not reach. A record with fewer than kMinQuietSamples quiet
+// is ≥ 5 σ, which noise alone does not reach. A response that rises slowly (a speed-controlled
+// drive taking up the load over tenths of a second) began well before that: so the start is the
+// earlier of that and the first sample beyond kOnsetSigmas times the RMS about the straight line
+// through the first half of the samples before it. A record with fewer than kMinQuietSamples quiet
 // samples (a logger started after the bite) falls back to the second differences over the
 // window, σ = 1.4826 · median|Δ²y| / √6; the signal's own curvature biases that upwards on a
 // coarsely sampled record, and the fit says so in a warning.
@@ -23,6 +26,7 @@
 namespace millkit::identify {
 
 inline constexpr double kOnsetFraction = 0.1;
+inline constexpr double kOnsetSigmas = 5.0;
 inline constexpr double kQuietMargin = 0.2;
 inline constexpr int kMinQuietSamples = 16;
 // No channel is trusted to be quieter than this fraction of its peak: about the resolution of a

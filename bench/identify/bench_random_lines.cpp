@@ -25,7 +25,12 @@
 // and from the truth, and scores its answers in MillKit's standard errors: wall time,
 // simulations and worst |z| side by side with MillKit's fit.
 //
+// --variant drive|wide-prior|stiffness fits lines the base draw never makes (a speed-PI drive, a
+// prior three times off, a fitted stiffness; identify/random_line.h). --scipy goes with the base
+// lines only: bench/identify/scipy_fit.py models no drive.
+//
 // Usage: bench_random_lines [--cases N (200)] [--first-seed S (1)] [--threads N] [--search-seed K]
+//                           [--variant base|drive|wide-prior|stiffness]
 //                           [--derivatives sensitivity|forward|central] [--scipy N] [--verbose]
 // Exits 1 when a case throws (printed, counted as crashed), else 0.
 #include <glog/logging.h>
@@ -298,6 +303,8 @@ int main(int argc, char** argv) {
   int threads = 1;  // > 1: each case is fitted again on this many threads and compared
   unsigned search_seed = 0;
   int scipy_lines = 0;
+  RandomLineVariant variant = RandomLineVariant::kBase;
+  std::string variant_name = "base";
   FitOptions options;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
@@ -311,6 +318,9 @@ int main(int argc, char** argv) {
       threads = std::atoi(argv[++i]);
     } else if (flag == "--scipy" && i + 1 < argc) {
       scipy_lines = std::atoi(argv[++i]);
+    } else if (flag == "--variant" && i + 1 < argc &&
+               ParseRandomLineVariant(argv[i + 1], &variant)) {
+      variant_name = argv[++i];
     } else if (flag == "--search-seed" && i + 1 < argc) {
       search_seed = static_cast<unsigned>(std::strtoul(argv[++i], nullptr, 10));
     } else if (flag == "--derivatives" && i + 1 < argc &&
@@ -319,10 +329,15 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: %s [--cases N] [--first-seed S] [--threads N] [--search-seed K] "
+                   "[--variant base|drive|wide-prior|stiffness] "
                    "[--derivatives sensitivity|forward|central] [--scipy N] [--verbose]\n",
                    argv[0]);
       return 2;
     }
+  }
+  if (scipy_lines > 0 && variant != RandomLineVariant::kBase) {
+    std::fprintf(stderr, "%s: --scipy goes with --variant base only\n", argv[0]);
+    return 2;
   }
   FLAGS_minloglevel = 3;  // Ceres' glog: a start that fails to simulate is data, not a message
   options.hop_seed += search_seed;
@@ -339,7 +354,7 @@ int main(int argc, char** argv) {
   for (int k = 0; k < cases; ++k) {
     const unsigned long seed = first_seed + static_cast<unsigned long>(k);
     try {
-      RandomLineCase c = MakeRandomLineCase(seed);
+      RandomLineCase c = MakeRandomLineCase(seed, variant);
       c.config.seed += search_seed;
       CaseResult r;
       r.seed = seed;
@@ -506,8 +521,8 @@ int main(int argc, char** argv) {
   std::sort(walls.begin(), walls.end());
   std::sort(sims.begin(), sims.end());
 
-  std::printf("\n## Default fit on random lines, seeds %lu–%lu\n\n", first_seed,
-              first_seed + static_cast<unsigned long>(cases) - 1);
+  std::printf("\n## Default fit on random lines (variant %s), seeds %lu–%lu\n\n",
+              variant_name.c_str(), first_seed, first_seed + static_cast<unsigned long>(cases) - 1);
   std::printf("| measure | value |\n|---|---|\n");
   std::printf("| cases | %d (%d crashed) |\n", n, crashed);
   std::printf("| every identifiable parameter within 3 SE | %d (%.1f %%) |\n", good_z,
@@ -594,9 +609,9 @@ int main(int argc, char** argv) {
         Quantile(truth_ratios, 0.5));
   }
   std::printf(
-      "\nReproduce: bench_random_lines --cases %d --first-seed %lu --search-seed %u --derivatives "
-      "%s%s --verbose\n",
-      cases, first_seed, search_seed, DerivativesName(options.derivatives),
+      "\nReproduce: bench_random_lines --cases %d --first-seed %lu --search-seed %u --variant %s "
+      "--derivatives %s%s --verbose\n",
+      cases, first_seed, search_seed, variant_name.c_str(), DerivativesName(options.derivatives),
       scipy_lines > 0 ? (" --scipy " + std::to_string(scipy_lines)).c_str() : "");
   return crashed > 0 ? 1 : 0;
 }

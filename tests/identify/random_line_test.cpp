@@ -95,3 +95,44 @@ TEST_CASE("random line: fifty seeds stay inside the stated ranges") {
     CHECK(finite);
   }
 }
+
+TEST_CASE("random line variants change only what they name, each within its stated ranges") {
+  for (unsigned long seed = 1; seed <= 20; ++seed) {
+    const RandomLineCase base = MakeRandomLineCase(seed);
+    INFO("seed " << seed << ": " << base.description);
+    REQUIRE(MakeRandomLineCase(seed, RandomLineVariant::kBase).record.values == base.record.values);
+
+    const RandomLineCase drive = MakeRandomLineCase(seed, RandomLineVariant::kDrive);
+    REQUIRE(drive.truth.drive.has_value());
+    REQUIRE(drive.prior.drive.has_value());
+    const double bandwidth = drive.truth.drive->kp / drive.truth.masses[0].inertia_kg_m2;
+    CHECK(bandwidth >= kTwoPi * 5.0 * (1.0 - 1e-12));
+    CHECK(bandwidth <= kTwoPi * 20.0 * (1.0 + 1e-12));
+    CHECK(drive.record.values != base.record.values);
+    CHECK(drive.record.time_s == base.record.time_s);
+    CHECK(drive.truth_values == base.truth_values);
+    CHECK(drive.prior.links[0].damping_Nms_per_rad == base.prior.links[0].damping_Nms_per_rad);
+
+    const RandomLineCase wide = MakeRandomLineCase(seed, RandomLineVariant::kWidePrior);
+    CHECK(wide.record.values == base.record.values);
+    REQUIRE(wide.config.free.size() == base.config.free.size());
+    for (size_t l = 0; l < wide.truth.links.size(); ++l) {
+      const double factor =
+          wide.prior.links[l].damping_Nms_per_rad / wide.truth.links[l].damping_Nms_per_rad;
+      CHECK(std::abs(std::log(factor)) <= std::log(3.0) + 1e-12);
+    }
+    for (size_t i = 0; i < wide.config.free.size(); ++i) {
+      CHECK(wide.truth_values[i] >= wide.config.free[i].lower);
+      CHECK(wide.truth_values[i] <= wide.config.free[i].upper);
+    }
+
+    const RandomLineCase stiff = MakeRandomLineCase(seed, RandomLineVariant::kStiffness);
+    REQUIRE(stiff.config.free.size() == base.config.free.size() + 1);
+    const FreeParameter& k = stiff.config.free.back();
+    CHECK(k.parameter.kind == driveline::SceneParameter::Kind::kStiffness);
+    CHECK(k.scan);
+    CHECK(stiff.truth_values.back() >= k.lower);
+    CHECK(stiff.truth_values.back() <= k.upper);
+    CHECK(std::abs(std::log(k.start / stiff.truth_values.back())) <= std::log(1.3) + 1e-12);
+  }
+}
