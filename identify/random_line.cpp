@@ -418,6 +418,12 @@ void AddDrive(Draw& draw, RandomLineCase* c) {
   c->description += Format("; speed-PI drive on the motor at %.1f Hz", bandwidth / (2.0 * M_PI));
 }
 
+void UseNoPullLaw(RandomLineCase* c) {
+  c->truth.contact = c->prior.contact = driveline::ContactLaw::kNoPull;
+  c->record = GenerateRecord(c->truth, c->record_spec);
+  c->description += "; contact law no_pull";
+}
+
 void WidenPrior(Draw& draw, RandomLineCase* c) {
   for (size_t l = 0; l < c->prior.links.size(); ++l) {
     auto& link = c->prior.links[l];
@@ -486,6 +492,9 @@ RandomLineCase MakeRandomLineCase(unsigned long seed, RandomLineVariant variant)
     case RandomLineVariant::kStiffness:
       FreeStiffness(draw, &c);
       break;
+    case RandomLineVariant::kNoPull:
+      UseNoPullLaw(&c);
+      break;
   }
   TruthValues(&c);
   return c;
@@ -496,7 +505,8 @@ bool ParseRandomLineVariant(const std::string& name, RandomLineVariant* variant)
       {"base", RandomLineVariant::kBase},
       {"drive", RandomLineVariant::kDrive},
       {"wide-prior", RandomLineVariant::kWidePrior},
-      {"stiffness", RandomLineVariant::kStiffness}};
+      {"stiffness", RandomLineVariant::kStiffness},
+      {"no-pull", RandomLineVariant::kNoPull}};
   for (const auto& [text, value] : kNames) {
     if (name == text) {
       *variant = value;

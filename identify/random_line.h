@@ -32,6 +32,8 @@
 //    made again with the same spec. The load is taken up over tenths of a second.
 //  - kWidePrior: the prior's dampings off by up to ×3 and its gaps by up to ×2.
 //  - kStiffness: one link's stiffness fitted too (the prior's × [1/1.3, 1.3], bounds ÷2 to ×2).
+//  - kNoPull: the no_pull contact law (a contact that would pull opens), truth and prior alike;
+//    the record made again with the same spec.
 #pragma once
 
 #include <string>
@@ -47,7 +49,7 @@ namespace millkit::identify {
 inline constexpr double kMinModeHz = 15.0;
 inline constexpr double kMaxModeHz = 120.0;
 
-enum class RandomLineVariant { kBase, kDrive, kWidePrior, kStiffness };
+enum class RandomLineVariant { kBase, kDrive, kWidePrior, kStiffness, kNoPull };
 
 struct RandomLineCase {
   unsigned long seed = 0;
@@ -65,9 +67,9 @@ struct RandomLineCase {
 // generator. Throws std::runtime_error only if 20 draws in a row fail (never seen in 500 seeds).
 RandomLineCase MakeRandomLineCase(unsigned long seed);
 // The seed's base case, changed as the variant says; the drive variant throws SolverFailure when
-// its record cannot be simulated (never seen in 400 seeds).
+// its record cannot be simulated (never seen in 400 seeds), and so does the no-pull variant.
 RandomLineCase MakeRandomLineCase(unsigned long seed, RandomLineVariant variant);
-// "base", "drive", "wide-prior", "stiffness"; false for any other name.
+// "base", "drive", "wide-prior", "stiffness", "no-pull"; false for any other name.
 bool ParseRandomLineVariant(const std::string& name, RandomLineVariant* variant);
 
 // Elastic natural frequencies (Hz, ascending) of the undamped line with every gap closed

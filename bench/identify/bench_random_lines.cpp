@@ -25,12 +25,13 @@
 // and from the truth, and scores its answers in MillKit's standard errors: wall time,
 // simulations and worst |z| side by side with MillKit's fit.
 //
-// --variant drive|wide-prior|stiffness fits lines the base draw never makes (a speed-PI drive, a
-// prior three times off, a fitted stiffness; identify/random_line.h). --scipy goes with the base
+// --variant drive|wide-prior|stiffness|no-pull fits lines the base draw never makes (a speed-PI
+// drive, a prior three times off, a fitted stiffness, the no_pull contact law;
+// identify/random_line.h). --scipy goes with the base
 // lines only: bench/identify/scipy_fit.py models no drive.
 //
 // Usage: bench_random_lines [--cases N (200)] [--first-seed S (1)] [--threads N] [--search-seed K]
-//                           [--variant base|drive|wide-prior|stiffness]
+//                           [--variant base|drive|wide-prior|stiffness|no-pull]
 //                           [--derivatives sensitivity|forward|central] [--scipy N] [--verbose]
 // Exits 1 when a case throws (printed, counted as crashed), else 0.
 #include <glog/logging.h>
@@ -329,7 +330,7 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: %s [--cases N] [--first-seed S] [--threads N] [--search-seed K] "
-                   "[--variant base|drive|wide-prior|stiffness] "
+                   "[--variant base|drive|wide-prior|stiffness|no-pull] "
                    "[--derivatives sensitivity|forward|central] [--scipy N] [--verbose]\n",
                    argv[0]);
       return 2;

@@ -134,5 +134,11 @@ TEST_CASE("random line variants change only what they name, each within its stat
     CHECK(stiff.truth_values.back() >= k.lower);
     CHECK(stiff.truth_values.back() <= k.upper);
     CHECK(std::abs(std::log(k.start / stiff.truth_values.back())) <= std::log(1.3) + 1e-12);
+
+    const RandomLineCase no_pull = MakeRandomLineCase(seed, RandomLineVariant::kNoPull);
+    CHECK(no_pull.truth.contact == driveline::ContactLaw::kNoPull);
+    CHECK(no_pull.prior.contact == driveline::ContactLaw::kNoPull);
+    CHECK(no_pull.truth_values == base.truth_values);
+    CHECK(no_pull.record.time_s == base.record.time_s);
   }
 }
