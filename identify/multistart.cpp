@@ -435,6 +435,19 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
     minima.push_back(std::move(fit));
   }
   search.best = lowest();
+  // Gap kicks: the neighbouring valleys of a wide gap's impact timing.
+  model->set_activity("gap kicks");
+  const std::vector<std::vector<double>> kicks = GapKicks(*model, minima[search.best].u, options);
+  for (auto& fit : MapOverCopies<LocalFit>(*model, options.threads, static_cast<int>(kicks.size()),
+                                           [&](const FitModel&copy, int i) {
+                                             return Refine(copy, options, kicks[i], true,
+                                                           options.max_iterations, {},
+                                                           &minima[search.best]);
+                                           })) {
+    fit.start = -1;
+    minima.push_back(std::move(fit));
+  }
+  search.best = lowest();
   // A valley that bends sharply within a few standard errors: followed, a lower one along it.
   model->set_activity("following curved valleys");
   const std::vector<std::vector<double>> curved = CurvedValleyPoints(

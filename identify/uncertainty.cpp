@@ -173,6 +173,24 @@ std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vec
   return points;
 }
 
+std::vector<std::vector<double>> GapKicks(const FitModel& model, const std::vector<double>& u,
+                                          const FitOptions& options) {
+  std::vector<std::vector<double>> points;
+  if (!(options.gap_kick > 0.0)) return points;
+  for (int i = 0; i < model.parameters(); ++i) {
+    if (model.free(i).parameter.kind != driveline::SceneParameter::Kind::kBacklash) continue;
+    const double gap = model.Physical(i, u[i]);
+    for (const double sign : {1.0, -1.0}) {
+      const double kicked = gap * (1.0 + sign * options.gap_kick);
+      if (kicked < model.free(i).lower || kicked > model.free(i).upper) continue;
+      std::vector<double> point(u);
+      point[i] = model.Unit(i, kicked);
+      points.push_back(std::move(point));
+    }
+  }
+  return points;
+}
+
 namespace {
 
 // The first point of a walk inward from a bound, as a fraction of the range (then doubled).

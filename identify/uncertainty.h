@@ -45,6 +45,11 @@ std::vector<ProfileProbe> ProfileProbes(const FitModel& model, const std::vector
 std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vector<double>& u,
                                            double cost, const FitOptions& options);
 
+// Gap kicks: the minimum u with one fitted backlash set options.gap_kick wider, or narrower
+// (relative), the others as they are; one point per gap and side that stays within the bounds.
+std::vector<std::vector<double>> GapKicks(const FitModel& model, const std::vector<double>& u,
+                                          const FitOptions& options);
+
 // Curved valleys: where the cost ± profile_step standard errors along a parameter's straight
 // profile direction rises more than FitOptions::curved_valley_ratio times the linearisation's
 // prediction, the valley bends sharply within a few standard errors and the linearisation says

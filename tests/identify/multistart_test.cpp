@@ -282,6 +282,7 @@ TEST_CASE("A sharply curved valley is followed down to a lower one", "[fit]") {
   REQUIRE(fixture.minimum.converged);
   identify::FitOptions options;
   options.curved_valley_ratio = 0.0;
+  options.gap_kick = 0.0;  // which reach the lower valley too
   const identify::FitResult unfollowed =
       identify::Fit(fixture.line.prior, fixture.line.record, fixture.line.config, options);
   REQUIRE(unfollowed.summary.success);
