@@ -422,32 +422,26 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
     search.escalated = true;
     search_from(wider, minima[search.best].u);
   }
+  // Points near the best minimum, each refined with everything free; a refinement that comes
+  // back to the best minimum stops there (the rejoin stop).
+  const auto refine_beside_best = [&](const std::vector<std::vector<double>>& points) {
+    for (auto& fit :
+         MapOverCopies<LocalFit>(*model, options.threads, static_cast<int>(points.size()),
+                                 [&](const FitModel&copy, int i) {
+                                   return Refine(copy, options, points[i], true,
+                                                 options.max_iterations, {}, &minima[search.best]);
+                                 })) {
+      fit.start = -1;
+      minima.push_back(std::move(fit));
+    }
+    search.best = lowest();
+  };
   // Basin hopping: a valley next door that every start missed.
   model->set_activity("basin hops");
-  const std::vector<std::vector<double>> hops =
-      HopPoints(*model, minima[search.best].u, minima[search.best].cost, options);
-  for (auto& fit : MapOverCopies<LocalFit>(
-           *model, options.threads, static_cast<int>(hops.size()), [&](const FitModel&copy, int i) {
-             return Refine(copy, options, hops[i], true, options.max_iterations, {},
-                           &minima[search.best]);
-           })) {
-    fit.start = -1;
-    minima.push_back(std::move(fit));
-  }
-  search.best = lowest();
+  refine_beside_best(HopPoints(*model, minima[search.best].u, minima[search.best].cost, options));
   // Gap kicks: the neighbouring valleys of a wide gap's impact timing.
   model->set_activity("gap kicks");
-  const std::vector<std::vector<double>> kicks = GapKicks(*model, minima[search.best].u, options);
-  for (auto& fit : MapOverCopies<LocalFit>(*model, options.threads, static_cast<int>(kicks.size()),
-                                           [&](const FitModel&copy, int i) {
-                                             return Refine(copy, options, kicks[i], true,
-                                                           options.max_iterations, {},
-                                                           &minima[search.best]);
-                                           })) {
-    fit.start = -1;
-    minima.push_back(std::move(fit));
-  }
-  search.best = lowest();
+  refine_beside_best(GapKicks(*model, minima[search.best].u, options));
   // A valley that bends sharply within a few standard errors: followed, a lower one along it.
   model->set_activity("following curved valleys");
   const std::vector<std::vector<double>> curved = CurvedValleyPoints(
