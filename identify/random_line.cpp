@@ -66,6 +66,8 @@ constexpr unsigned long kVariantStream = 0x9E3779B97F4A7C15UL;
 constexpr double kMinDriveBandwidth_Hz = 5.0;
 constexpr double kMaxDriveBandwidth_Hz = 20.0;
 constexpr double kUnreachedDriveLimit_Nm = 1e12;
+constexpr double kMinLowpassFraction = 0.1;  // of the record's rate
+constexpr double kMaxLowpassFraction = 0.4;
 constexpr double kWidePriorDampingFactor = 3.0;
 constexpr double kWidePriorGapFactor = 2.0;
 constexpr double kPriorStiffnessFactor = 1.3;
@@ -418,10 +420,30 @@ void AddDrive(Draw& draw, RandomLineCase* c) {
   c->description += Format("; speed-PI drive on the motor at %.1f Hz", bandwidth / (2.0 * M_PI));
 }
 
-void UseNoPullLaw(RandomLineCase* c) {
-  c->truth.contact = c->prior.contact = driveline::ContactLaw::kNoPull;
+void UseContactLaw(driveline::ContactLaw law, RandomLineCase* c) {
+  c->truth.contact = c->prior.contact = law;
   c->record = GenerateRecord(c->truth, c->record_spec);
-  c->description += "; contact law no_pull";
+  c->description += std::string("; contact law ") + driveline::ContactLawName(law);
+}
+
+// The recorder's first-order anti-alias filter, its cutoff a log-uniform fraction of the rate,
+// in the record and in the fit's channels (the engineer knows the recorder).
+void AddLowpass(Draw& draw, RandomLineCase* c) {
+  const double cutoff_Hz =
+      c->truth.sample_rate_Hz * draw.LogUniform(kMinLowpassFraction, kMaxLowpassFraction);
+  c->record_spec.defects.lowpass_Hz = cutoff_Hz;
+  c->record = GenerateRecord(c->truth, c->record_spec);
+  for (auto& channel : c->config.channels) channel.lowpass_Hz = cutoff_Hz;
+  c->description += Format("; recorder low-pass at %.0f Hz", cutoff_Hz);
+}
+
+// Every load a step at the bite (rise 0), truth and prior alike.
+void StepLoads(RandomLineCase* c) {
+  for (auto* scene : {&c->truth, &c->prior}) {
+    for (auto& source : scene->torques) source.times_s.back() = source.times_s.front();
+  }
+  c->record = GenerateRecord(c->truth, c->record_spec);
+  c->description += "; loads applied as steps";
 }
 
 void WidenPrior(Draw& draw, RandomLineCase* c) {
@@ -478,23 +500,40 @@ RandomLineCase MakeRandomLineCase(unsigned long seed) {
 }
 
 RandomLineCase MakeRandomLineCase(unsigned long seed, RandomLineVariant variant) {
+  return MakeRandomLineCase(seed, std::vector<RandomLineVariant>{variant});
+}
+
+RandomLineCase MakeRandomLineCase(unsigned long seed,
+                                  const std::vector<RandomLineVariant>& variants) {
   RandomLineCase c = MakeRandomLineCase(seed);
-  Draw draw(seed ^ kVariantStream);
-  switch (variant) {
-    case RandomLineVariant::kBase:
-      return c;
-    case RandomLineVariant::kDrive:
-      AddDrive(draw, &c);
-      break;
-    case RandomLineVariant::kWidePrior:
-      WidenPrior(draw, &c);
-      break;
-    case RandomLineVariant::kStiffness:
-      FreeStiffness(draw, &c);
-      break;
-    case RandomLineVariant::kNoPull:
-      UseNoPullLaw(&c);
-      break;
+  for (size_t k = 0; k < variants.size(); ++k) {
+    // The first variant's stream is the one a variant alone takes.
+    Draw draw(seed ^ (kVariantStream * (k + 1)));
+    switch (variants[k]) {
+      case RandomLineVariant::kBase:
+        break;
+      case RandomLineVariant::kDrive:
+        AddDrive(draw, &c);
+        break;
+      case RandomLineVariant::kWidePrior:
+        WidenPrior(draw, &c);
+        break;
+      case RandomLineVariant::kStiffness:
+        FreeStiffness(draw, &c);
+        break;
+      case RandomLineVariant::kNoPull:
+        UseContactLaw(driveline::ContactLaw::kNoPull, &c);
+        break;
+      case RandomLineVariant::kLinear:
+        UseContactLaw(driveline::ContactLaw::kLinear, &c);
+        break;
+      case RandomLineVariant::kStepLoad:
+        StepLoads(&c);
+        break;
+      case RandomLineVariant::kLowpass:
+        AddLowpass(draw, &c);
+        break;
+    }
   }
   TruthValues(&c);
   return c;
@@ -506,7 +545,10 @@ bool ParseRandomLineVariant(const std::string& name, RandomLineVariant* variant)
       {"drive", RandomLineVariant::kDrive},
       {"wide-prior", RandomLineVariant::kWidePrior},
       {"stiffness", RandomLineVariant::kStiffness},
-      {"no-pull", RandomLineVariant::kNoPull}};
+      {"no-pull", RandomLineVariant::kNoPull},
+      {"linear", RandomLineVariant::kLinear},
+      {"step-load", RandomLineVariant::kStepLoad},
+      {"lowpass", RandomLineVariant::kLowpass}};
   for (const auto& [text, value] : kNames) {
     if (name == text) {
       *variant = value;
@@ -514,6 +556,19 @@ bool ParseRandomLineVariant(const std::string& name, RandomLineVariant* variant)
     }
   }
   return false;
+}
+
+bool ParseRandomLineVariants(const std::string& names, std::vector<RandomLineVariant>* variants) {
+  variants->clear();
+  size_t from = 0;
+  while (true) {
+    const size_t plus = names.find('+', from);
+    RandomLineVariant variant;
+    if (!ParseRandomLineVariant(names.substr(from, plus - from), &variant)) return false;
+    variants->push_back(variant);
+    if (plus == std::string::npos) return true;
+    from = plus + 1;
+  }
 }
 
 }  // namespace millkit::identify

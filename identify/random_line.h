@@ -34,6 +34,14 @@
 //  - kStiffness: one link's stiffness fitted too (the prior's × [1/1.3, 1.3], bounds ÷2 to ×2).
 //  - kNoPull: the no_pull contact law (a contact that would pull opens), truth and prior alike;
 //    the record made again with the same spec.
+//  - kLinear: the linear contact law (in contact m = τc + τd, which may pull; the torque jumps
+//    by τd where a contact starts and ends), truth and prior alike; the record made again.
+//  - kStepLoad: every load a step at the bite (rise 0) instead of a 2–15 ms ramp, truth and prior
+//    alike: the right-hand side jumps at the fitted bite time; the record made again.
+//  - kLowpass: the recorder's first-order anti-alias filter, cutoff log-uniform in 0.1–0.4 of
+//    the record's rate, in the record (made again) and in every channel of the fit's config.
+// Variants combine ("no-pull+lowpass"): each in turn, the k-th with a stream of its own (the
+// first with the stream it takes alone).
 #pragma once
 
 #include <string>
@@ -49,7 +57,16 @@ namespace millkit::identify {
 inline constexpr double kMinModeHz = 15.0;
 inline constexpr double kMaxModeHz = 120.0;
 
-enum class RandomLineVariant { kBase, kDrive, kWidePrior, kStiffness, kNoPull };
+enum class RandomLineVariant {
+  kBase,
+  kDrive,
+  kWidePrior,
+  kStiffness,
+  kNoPull,
+  kLinear,
+  kStepLoad,
+  kLowpass
+};
 
 struct RandomLineCase {
   unsigned long seed = 0;
@@ -67,10 +84,16 @@ struct RandomLineCase {
 // generator. Throws std::runtime_error only if 20 draws in a row fail (never seen in 500 seeds).
 RandomLineCase MakeRandomLineCase(unsigned long seed);
 // The seed's base case, changed as the variant says; the drive variant throws SolverFailure when
-// its record cannot be simulated (never seen in 400 seeds), and so does the no-pull variant.
+// its record cannot be simulated (never seen in 400 seeds), and so do the contact-law and
+// step-load variants.
 RandomLineCase MakeRandomLineCase(unsigned long seed, RandomLineVariant variant);
-// "base", "drive", "wide-prior", "stiffness", "no-pull"; false for any other name.
+RandomLineCase MakeRandomLineCase(unsigned long seed,
+                                  const std::vector<RandomLineVariant>& variants);
+// "base", "drive", "wide-prior", "stiffness", "no-pull", "linear", "step-load", "lowpass"; false
+// for any other name.
 bool ParseRandomLineVariant(const std::string& name, RandomLineVariant* variant);
+// Names joined by '+' ("linear+lowpass"); false if any is not a variant.
+bool ParseRandomLineVariants(const std::string& names, std::vector<RandomLineVariant>* variants);
 
 // Elastic natural frequencies (Hz, ascending) of the undamped line with every gap closed
 // (millkit/driveline/natural_frequencies.h without the rigid-body mode).

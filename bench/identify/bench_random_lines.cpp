@@ -25,13 +25,15 @@
 // and from the truth, and scores its answers in MillKit's standard errors: wall time,
 // simulations and worst |z| side by side with MillKit's fit.
 //
-// --variant drive|wide-prior|stiffness|no-pull fits lines the base draw never makes (a speed-PI
-// drive, a prior three times off, a fitted stiffness, the no_pull contact law;
-// identify/random_line.h). --scipy goes with the base
+// --variant drive|wide-prior|stiffness|no-pull|linear|step-load|lowpass fits lines the base draw
+// never makes (a speed-PI drive, a prior three times off, a fitted stiffness, the no_pull or the
+// linear contact law, loads applied as steps, a recorder anti-alias filter;
+// identify/random_line.h); variants combine with '+' (no-pull+lowpass). --scipy goes with the base
 // lines only: bench/identify/scipy_fit.py models no drive.
 //
 // Usage: bench_random_lines [--cases N (200)] [--first-seed S (1)] [--threads N] [--search-seed K]
-//                           [--variant base|drive|wide-prior|stiffness|no-pull]
+//                           [--variant
+//                           base|drive|wide-prior|stiffness|no-pull|linear|step-load|lowpass][+...]
 //                           [--derivatives sensitivity|forward|central] [--scipy N] [--verbose]
 // Exits 1 when a case throws (printed, counted as crashed), else 0.
 #include <glog/logging.h>
@@ -304,7 +306,7 @@ int main(int argc, char** argv) {
   int threads = 1;  // > 1: each case is fitted again on this many threads and compared
   unsigned search_seed = 0;
   int scipy_lines = 0;
-  RandomLineVariant variant = RandomLineVariant::kBase;
+  std::vector<RandomLineVariant> variants;
   std::string variant_name = "base";
   FitOptions options;
   for (int i = 1; i < argc; ++i) {
@@ -320,7 +322,7 @@ int main(int argc, char** argv) {
     } else if (flag == "--scipy" && i + 1 < argc) {
       scipy_lines = std::atoi(argv[++i]);
     } else if (flag == "--variant" && i + 1 < argc &&
-               ParseRandomLineVariant(argv[i + 1], &variant)) {
+               ParseRandomLineVariants(argv[i + 1], &variants)) {
       variant_name = argv[++i];
     } else if (flag == "--search-seed" && i + 1 < argc) {
       search_seed = static_cast<unsigned>(std::strtoul(argv[++i], nullptr, 10));
@@ -328,15 +330,18 @@ int main(int argc, char** argv) {
                ParseDerivatives(argv[i + 1], &options.derivatives)) {
       ++i;
     } else {
-      std::fprintf(stderr,
-                   "usage: %s [--cases N] [--first-seed S] [--threads N] [--search-seed K] "
-                   "[--variant base|drive|wide-prior|stiffness|no-pull] "
-                   "[--derivatives sensitivity|forward|central] [--scipy N] [--verbose]\n",
-                   argv[0]);
+      std::fprintf(
+          stderr,
+          "usage: %s [--cases N] [--first-seed S] [--threads N] [--search-seed K] "
+          "[--variant base|drive|wide-prior|stiffness|no-pull|linear|step-load|lowpass][+...] "
+          "[--derivatives sensitivity|forward|central] [--scipy N] [--verbose]\n",
+          argv[0]);
       return 2;
     }
   }
-  if (scipy_lines > 0 && variant != RandomLineVariant::kBase) {
+  if (scipy_lines > 0 && std::any_of(variants.begin(), variants.end(), [](RandomLineVariant v) {
+        return v != RandomLineVariant::kBase;
+      })) {
     std::fprintf(stderr, "%s: --scipy goes with --variant base only\n", argv[0]);
     return 2;
   }
@@ -355,7 +360,7 @@ int main(int argc, char** argv) {
   for (int k = 0; k < cases; ++k) {
     const unsigned long seed = first_seed + static_cast<unsigned long>(k);
     try {
-      RandomLineCase c = MakeRandomLineCase(seed, variant);
+      RandomLineCase c = MakeRandomLineCase(seed, variants);
       c.config.seed += search_seed;
       CaseResult r;
       r.seed = seed;

@@ -140,5 +140,61 @@ TEST_CASE("random line variants change only what they name, each within its stat
     CHECK(no_pull.prior.contact == driveline::ContactLaw::kNoPull);
     CHECK(no_pull.truth_values == base.truth_values);
     CHECK(no_pull.record.time_s == base.record.time_s);
+
+    const RandomLineCase linear = MakeRandomLineCase(seed, RandomLineVariant::kLinear);
+    CHECK(linear.truth.contact == driveline::ContactLaw::kLinear);
+    CHECK(linear.prior.contact == driveline::ContactLaw::kLinear);
+    CHECK(linear.truth_values == base.truth_values);
+    CHECK(linear.record.time_s == base.record.time_s);
+    bool any_gap = false;
+    for (const auto& link : base.truth.links) any_gap = any_gap || link.backlash_rad > 0.0;
+    CHECK((linear.record.values != base.record.values) == any_gap);
+
+    const RandomLineCase step = MakeRandomLineCase(seed, RandomLineVariant::kStepLoad);
+    REQUIRE(step.truth.torques.size() == base.truth.torques.size());
+    for (size_t i = 0; i < step.truth.torques.size(); ++i) {
+      const auto& source = step.truth.torques[i];
+      CHECK(source.times_s.front() == source.times_s.back());
+      CHECK(source.times_s.front() == base.truth.torques[i].times_s.front());
+      CHECK(source.values_Nm == base.truth.torques[i].values_Nm);
+      CHECK(step.prior.torques[i].times_s.front() == step.prior.torques[i].times_s.back());
+    }
+    CHECK(step.record.values != base.record.values);
+    CHECK(step.record.time_s == base.record.time_s);
+    CHECK(step.truth_values == base.truth_values);
+
+    const RandomLineCase lowpass = MakeRandomLineCase(seed, RandomLineVariant::kLowpass);
+    const double cutoff = lowpass.record_spec.defects.lowpass_Hz;
+    const double rate = base.record_spec.defects.sample_rate_Hz;
+    CHECK(cutoff >= 0.1 * rate * (1.0 - 1e-12));
+    CHECK(cutoff <= 0.4 * rate * (1.0 + 1e-12));
+    CHECK(base.record_spec.defects.lowpass_Hz == 0.0);
+    for (const auto& channel : lowpass.config.channels) CHECK(channel.lowpass_Hz == cutoff);
+    CHECK(lowpass.record.values != base.record.values);
+    CHECK(lowpass.truth_values == base.truth_values);
+
+    // Combined: each variant as alone (the first with its own stream), the filter over the law.
+    const RandomLineCase both = MakeRandomLineCase(
+        seed,
+        std::vector<RandomLineVariant>{RandomLineVariant::kNoPull, RandomLineVariant::kLowpass});
+    CHECK(both.truth.contact == driveline::ContactLaw::kNoPull);
+    CHECK(both.record_spec.defects.lowpass_Hz > 0.0);
+    for (const auto& channel : both.config.channels) {
+      CHECK(channel.lowpass_Hz == both.record_spec.defects.lowpass_Hz);
+    }
+    const RandomLineCase wide_lowpass = MakeRandomLineCase(
+        seed,
+        std::vector<RandomLineVariant>{RandomLineVariant::kWidePrior, RandomLineVariant::kLowpass});
+    CHECK(wide_lowpass.prior.links[0].damping_Nms_per_rad ==
+          wide.prior.links[0].damping_Nms_per_rad);
   }
+  std::vector<RandomLineVariant> parsed;
+  CHECK(ParseRandomLineVariants("no-pull+lowpass", &parsed));
+  CHECK(parsed ==
+        std::vector<RandomLineVariant>{RandomLineVariant::kNoPull, RandomLineVariant::kLowpass});
+  CHECK(ParseRandomLineVariants("drive", &parsed));
+  CHECK(parsed.size() == 1);
+  CHECK_FALSE(ParseRandomLineVariants("no-pull+", &parsed));
+  CHECK_FALSE(ParseRandomLineVariants("no-pull+nothing", &parsed));
+  CHECK_FALSE(ParseRandomLineVariants("", &parsed));
 }
