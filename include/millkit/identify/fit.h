@@ -138,7 +138,7 @@ struct FitOptions {
   // parameter held (profile_iterations each) at profile_step × 1, 2, 4, … up to
   // profile_relax_reach standard errors, until χ² passes profile_chi2 or a bound; each point
   // held at χ² widens every parameter it moved by d to d / √max(χ², 1). 0: no relaxing.
-  double profile_relax_widening = 1.25;
+  double profile_relax_widening = 1.15;
   double profile_bend_ratio = 10.0;
   int profile_iterations = 3;
   double profile_relax_reach = 16.0;
