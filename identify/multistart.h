@@ -79,7 +79,8 @@ struct Search {
 //     through that stage's fit (PreselectStarts), the best distinct ones refined (RefineStarts);
 //  2. when the best minimum fails the misfit test (record noise per block), once more with
 //     escalation_factor × the scan points and twice the starts, from another seed;
-//  3. basin hopping from the best minimum (HopPoints), then its gaps kicked (GapKicks);
+//  3. basin hopping from the best minimum (HopPoints), then its gaps kicked (GapKicks), then its
+//     sharply curved valleys and bounds walked (CurvedValleyPoints);
 //  4. the axis probes (ProfileProbes), restarting from a lower one up to profile_restarts times.
 Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& options,
                     const std::vector<ChannelNoise>& noise, const std::vector<double>& start);

@@ -83,9 +83,9 @@ struct RandomLineCase {
 // Always returns a case: a draw whose record cannot be simulated is redrawn from the same
 // generator. Throws std::runtime_error only if 20 draws in a row fail (never seen in 500 seeds).
 RandomLineCase MakeRandomLineCase(unsigned long seed);
-// The seed's base case, changed as the variant says; the drive variant throws SolverFailure when
-// its record cannot be simulated (never seen in 400 seeds), and so do the contact-law and
-// step-load variants.
+// The seed's base case, changed as the variant says (or as each of the variants says, in turn);
+// a variant that makes the record again (drive, no-pull, linear, step-load, lowpass) throws
+// SolverFailure when it cannot be simulated (never seen in 400 seeds of each).
 RandomLineCase MakeRandomLineCase(unsigned long seed, RandomLineVariant variant);
 RandomLineCase MakeRandomLineCase(unsigned long seed,
                                   const std::vector<RandomLineVariant>& variants);

@@ -127,9 +127,8 @@ void JudgeFit(const FitModel& model, const std::vector<ChannelNoise>& noise,
   }
 
   // The best minimum reached only from a hop, a gap kick, a probe or a followed profile (start
-  // −1), well
-  // below every start's fit: the search's starts missed that valley, and nothing says they did
-  // not miss a lower one.
+  // −1), well below every start's fit: the search's starts missed that valley, and nothing says
+  // they did not miss a lower one.
   bool missed_by_starts = false;
   if (chosen.start < 0) {
     double best_start = std::numeric_limits<double>::infinity();

@@ -32,8 +32,8 @@
 // lines only: bench/identify/scipy_fit.py models no drive.
 //
 // Usage: bench_random_lines [--cases N (200)] [--first-seed S (1)] [--threads N] [--search-seed K]
-//                           [--variant
-//                           base|drive|wide-prior|stiffness|no-pull|linear|step-load|lowpass][+...]
+//                           [--variant V[+V...]]  (V: base, drive, wide-prior, stiffness,
+//                                                  no-pull, linear, step-load, lowpass)
 //                           [--derivatives sensitivity|forward|central] [--scipy N] [--verbose]
 // Exits 1 when a case throws (printed, counted as crashed), else 0.
 #include <glog/logging.h>
