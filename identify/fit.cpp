@@ -123,10 +123,22 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
     run.duration_s = record.time_s[end - 1] - origin_s;
     driveline::SimulationOptions options;
     options.estimate_error = false;
-    // A modelled recorder filter needs the signal from the record's start, kFilterOversample
-    // points per record step (linear between them: the filter is exact for that).
-    const bool filtered = std::any_of(channels.begin(), channels.end(),
-                                      [](const ChannelSpec& c) { return c.lowpass_Hz > 0.0; });
+    // A modelled recorder filter runs inside the model (Link::recorder_lowpass_Hz: exact at the
+    // record's times) when every channel of a link has the same one. Two channels of one link
+    // through different filters take the signal from the record's start instead,
+    // kFilterOversample points per record step, filtered as linear between them.
+    bool in_model = true;
+    for (const auto& a : channels) {
+      for (const auto& b : channels) {
+        if (a.link_index == b.link_index && a.lowpass_Hz != b.lowpass_Hz) in_model = false;
+      }
+    }
+    if (in_model) {
+      for (const auto& channel : channels) {
+        run.links[channel.link_index].recorder_lowpass_Hz = channel.lowpass_Hz;
+      }
+    }
+    const bool filtered = !in_model;
     const int first = filtered ? 0 : begin;
     const int stride = filtered ? kFilterOversample : 1;
     std::vector<double> times;
@@ -185,7 +197,7 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
     // A signal through the channel's recorder filter (linear between the samples), at the
     // record steps in [begin, end).
     const auto filter = [&](const ChannelSpec& channel, Eigen::Ref<Eigen::VectorXd> out) {
-      FirstOrderLowPass(channel.lowpass_Hz, time, &signal);
+      if (filtered) FirstOrderLowPass(channel.lowpass_Hz, time, &signal);
       for (int k = begin; k < end; ++k)
         out(k - begin) = signal[static_cast<size_t>(k - first) * stride];
     };

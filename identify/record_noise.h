@@ -30,9 +30,10 @@ inline constexpr double kOnsetSigmas = 5.0;
 inline constexpr double kQuietMargin = 0.2;
 inline constexpr int kMinQuietSamples = 16;
 // No channel is trusted to be quieter than this fraction of its peak: about the resolution of a
-// 14-bit recorder, and above the model's own accuracy (the modelled recorder filter, linear
-// between kFilterOversample points per step, is good to ~4e-5 of the peak). A noise-free
-// synthetic record would otherwise get weights that turn that model error into a misfit.
+// 14-bit recorder, and above a generated record's own accuracy (its filter runs on the
+// generator's grid as linear between points, good to ~1e-5 of the peak; the fit's model filters
+// exactly). A noise-free synthetic record would otherwise get weights that turn that error into a
+// misfit.
 inline constexpr double kNoiseFloorFraction = 1e-4;
 // A torque beyond this is not a measurement (N·m; the largest mill drives carry ~1e7).
 inline constexpr double kAbsurdTorque_Nm = 1e12;

@@ -104,6 +104,14 @@ Eigen::VectorXd AugmentedScale(const Model& model, double h) {
   const int nx = model.state_size(), nw = model.forcing_size();
   Eigen::VectorXd scale = Eigen::VectorXd::Ones(model.augmented_size());
   scale.head(nx) = model.StateScale();
+  // A recorder low-pass state y' = a (T z − y) at kFilterScaleMargin times its torque's scale: its
+  // row of the scaled matrix, a (T D / d_y, −1), then has the norm a (1 + 1/margin), and a leg's
+  // Taylor pieces (norm × length) pay for the filter's own rate only, not for the size of the
+  // torque's terms against y's.
+  constexpr double kFilterScaleMargin = 1024.0;
+  for (int l = 0; l < static_cast<int>(model.reduced_scene().links.size()); ++l) {
+    if (model.FilterIndexOf(l) >= 0) scale[model.FilterIndexOf(l)] *= kFilterScaleMargin;
+  }
   const auto& torques = model.reduced_scene().torques;
   for (int s = 0; s < nw - 1; ++s) {
     double value = 0.0, slope = 0.0;

@@ -238,7 +238,15 @@ Model::Model(Scene scene) : user_scene_(std::move(scene)) {
     }
     flexible_links_.push_back(l);
   }
-  nx_ = flexible_link_count() + groups + (has_drive() ? 2 : 0);
+  drive_base_ = flexible_link_count() + groups;
+  filter_base_ = drive_base_ + (has_drive() ? 2 : 0);
+  filter_index_.assign(scene_.links.size(), -1);
+  for (int l = 0; l < static_cast<int>(scene_.links.size()); ++l) {
+    if (scene_.links[l].recorder_lowpass_Hz <= 0.0) continue;
+    filter_index_[l] = filter_base_ + static_cast<int>(filtered_links_.size());
+    filtered_links_.push_back(l);
+  }
+  nx_ = filter_base_ + static_cast<int>(filtered_links_.size());
   nw_ = 1 + static_cast<int>(scene_.torques.size());
   BuildSurfaces();
   // Both depend on the scene only; every run needs them.
@@ -273,7 +281,7 @@ void Model::BuildSurfaces() {
     const Drive& drive = *scene_.drive;
     const int base = kLinkSurfaceCount * backlash_link_count();
     const int w = SpeedIndex(reduction_.group_of_mass[drive.mass]);
-    const int integral = nx_ - 2;
+    const int integral = drive_base_;
     for (int s : {kD0, kD1}) {
       auto row = surfaces_.row(base + s);
       row(one) = drive.kp * drive.speed_ref_rad_per_s + (s == kD0 ? -1.0 : 1.0) * drive.limit_Nm;
@@ -315,7 +323,7 @@ void Model::LinearPieces(const Phases& phases, Eigen::MatrixXd* a_out,
   if (has_drive()) {
     const Drive& drive = *scene_.drive;
     const int g = reduction_.group_of_mass[drive.mass];
-    const int w = SpeedIndex(g), integral = nx_ - 2, torque = nx_ - 1;
+    const int w = SpeedIndex(g), integral = drive_base_, torque = drive_base_ + 1;
     a(integral, w) -= 1.0;
     b(integral, 0) += drive.speed_ref_rad_per_s;
     a(w, torque) += 1.0 / group_inertia_[g];
@@ -335,6 +343,21 @@ void Model::LinearPieces(const Phases& phases, Eigen::MatrixXd* a_out,
         b(torque, 0) -= inv_lag * drive.limit_Nm;
         break;
     }
+  }
+  if (filtered_links_.empty()) return;
+  // y' = a (T z − y) with T the link's own torque row in these phases (a rigid link's reads the
+  // accelerations, which do not depend on y).
+  const int n = augmented_size();
+  Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n, n);
+  m.topLeftCorner(nx_, nx_) = a;
+  m.block(0, nx_, nx_, nw_) = b;
+  const Eigen::MatrixXd torque = OwnLinkTorqueRows(phases, m);
+  for (const int l : filtered_links_) {
+    const int y = filter_index_[l];
+    const double rate = 2.0 * M_PI * scene_.links[l].recorder_lowpass_Hz;
+    a.row(y) = rate * torque.row(l).head(nx_);
+    b.row(y) = rate * torque.row(l).segment(nx_, nw_);
+    a(y, y) -= rate;
   }
 }
 
@@ -486,10 +509,17 @@ Eigen::VectorXd Model::ComputeInitialState() const {
   if (has_drive()) {
     const Drive& drive = *scene_.drive;
     const double error = drive.speed_ref_rad_per_s - scene_.initial_speed_rad_per_s;
-    z[nx_ - 2] = drive.ki > 0.0 ? (drive_torque - drive.kp * error) / drive.ki : 0.0;
-    z[nx_ - 1] = drive_torque;
+    z[drive_base_] = drive.ki > 0.0 ? (drive_torque - drive.kp * error) / drive.ki : 0.0;
+    z[drive_base_ + 1] = drive_torque;
   }
   SetForcing(0.0, &z);
+  if (!filtered_links_.empty()) {
+    // The recorder's filters start settled on the torques the line starts with (the low-pass
+    // states do not enter the phases: no surface reads them).
+    const Phases phases = InitialPhases(z);
+    const Eigen::MatrixXd torque = OwnLinkTorqueRows(phases, SystemMatrix(phases));
+    for (const int l : filtered_links_) z[filter_index_[l]] = torque.row(l).dot(z);
+  }
   return z;
 }
 
@@ -514,6 +544,18 @@ LinkTorqueCoefficients Model::FlexibleLinkCoefficients(const Phases& phases, int
 void Model::Outputs(const Phases& phases, const Eigen::VectorXd& z, double* link_torque,
                     double* mass_speed, double* link_twist,
                     const Eigen::MatrixXd* system_matrix) const {
+  OwnOutputs(phases, z, link_torque, mass_speed, link_twist, system_matrix);
+  for (const int l : filtered_links_) {
+    link_torque[l] = z[filter_index_[l]];
+    // A rigid link's twist is its reported torque over c, as the exact solver reports it.
+    if (reduction_.link_rigid[l])
+      link_twist[l] = link_torque[l] / scene_.links[l].stiffness_Nm_per_rad;
+  }
+}
+
+void Model::OwnOutputs(const Phases& phases, const Eigen::VectorXd& z, double* link_torque,
+                       double* mass_speed, double* link_twist,
+                       const Eigen::MatrixXd* system_matrix) const {
   // Flexible link torques; kept on the stack for the usual small trees.
   constexpr int kStackLinks = 64;
   double stack_torque[kStackLinks];
@@ -545,7 +587,7 @@ void Model::Outputs(const Phases& phases, const Eigen::VectorXd& z, double* link
   for (size_t s = 0; s < scene_.torques.size(); ++s) {
     force[scene_.torques[s].mass] += z[nx_ + 1 + s];
   }
-  if (has_drive()) force[scene_.drive->mass] += z[nx_ - 1];
+  if (has_drive()) force[scene_.drive->mass] += z[drive_base_ + 1];
   for (int f = 0; f < flexible_link_count(); ++f) {
     const Link& link = scene_.links[flexible_links_[f]];
     force[link.from] -= flexible_torque[f];
@@ -563,6 +605,16 @@ void Model::Outputs(const Phases& phases, const Eigen::VectorXd& z, double* link
 
 Eigen::MatrixXd Model::LinkTorqueRows(const Phases& phases,
                                       const Eigen::MatrixXd& system_matrix) const {
+  Eigen::MatrixXd rows = OwnLinkTorqueRows(phases, system_matrix);
+  for (const int l : filtered_links_) {
+    rows.row(l).setZero();
+    rows(l, filter_index_[l]) = 1.0;
+  }
+  return rows;
+}
+
+Eigen::MatrixXd Model::OwnLinkTorqueRows(const Phases& phases,
+                                         const Eigen::MatrixXd& system_matrix) const {
   const int links = static_cast<int>(scene_.links.size());
   const int n = augmented_size();
   Eigen::MatrixXd rows = Eigen::MatrixXd::Zero(links, n);
@@ -572,10 +624,10 @@ Eigen::MatrixXd Model::LinkTorqueRows(const Phases& phases,
     // column of the forcing component that is always 1.
     Eigen::VectorXd unit = Eigen::VectorXd::Zero(n);
     std::vector<double> offset(links), torque(links), speed(scene_.masses.size()), twist(links);
-    Outputs(phases, unit, offset.data(), speed.data(), twist.data(), &system_matrix);
+    OwnOutputs(phases, unit, offset.data(), speed.data(), twist.data(), &system_matrix);
     for (int j = 0; j < n; ++j) {
       unit[j] = 1.0;
-      Outputs(phases, unit, torque.data(), speed.data(), twist.data(), &system_matrix);
+      OwnOutputs(phases, unit, torque.data(), speed.data(), twist.data(), &system_matrix);
       for (int l = 0; l < links; ++l) rows(l, j) = torque[l] - offset[l];
       unit[j] = 0.0;
     }
@@ -611,10 +663,37 @@ Eigen::VectorXd Model::ComputeStateScale() const {
     scale[f] = std::max({twist, std::abs(z0[f]), speed / omega_link});
   }
   for (int g = 0; g < group_count(); ++g) scale[SpeedIndex(g)] = speed;
+  for (const int l : filtered_links_) scale[filter_index_[l]] = 0.0;
   if (has_drive()) {
     const Drive& drive = *scene_.drive;
-    scale[nx_ - 2] = drive.ki > 0.0 ? drive.limit_Nm / drive.ki : 1.0;
-    scale[nx_ - 1] = drive.limit_Nm;
+    scale[drive_base_] = drive.ki > 0.0 ? drive.limit_Nm / drive.ki : 1.0;
+    scale[drive_base_ + 1] = drive.limit_Nm;
+  }
+  if (filtered_links_.empty()) return scale;
+  // A low-pass state's scale is the sum of its torque's terms at their scales (forcing at the
+  // sources' peaks), the most over the phase sets of every link in contact, dead, and the
+  // initial ones.
+  Eigen::VectorXd forcing_scale = Eigen::VectorXd::Ones(nw_);
+  for (size_t s = 0; s < scene_.torques.size(); ++s) {
+    for (const double v : scene_.torques[s].values_Nm) {
+      forcing_scale[1 + s] = std::max(forcing_scale[1 + s], std::abs(v));
+    }
+  }
+  std::vector<Phases> sets{InitialPhases(z0)};  // initial_phases_ is not set yet
+  for (const LinkPhase link : {LinkPhase::kPosSpringDamper, LinkPhase::kDead}) {
+    Phases phases(backlash_link_count() + (has_drive() ? 1 : 0), static_cast<char>(link));
+    if (has_drive()) phases.back() = static_cast<char>(DrivePhase::kLinear);
+    sets.push_back(phases);
+  }
+  for (const Phases& phases : sets) {
+    const Eigen::MatrixXd torque = OwnLinkTorqueRows(phases, SystemMatrix(phases));
+    for (const int l : filtered_links_) {
+      double terms = 0.0;
+      for (int j = 0; j < filter_base_; ++j) terms += std::abs(torque(l, j)) * scale[j];
+      for (int w = 0; w < nw_; ++w) terms += std::abs(torque(l, nx_ + w)) * forcing_scale[w];
+      double& y = scale[filter_index_[l]];
+      y = std::max({y, terms, std::abs(z0[filter_index_[l]]), 1.0});
+    }
   }
   return scale;
 }

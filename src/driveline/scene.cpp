@@ -225,6 +225,8 @@ void ValidateScene(const Scene& scene) {
             [&] { return where() + " key 'backlash': must be >= 0"; });
     Require(l.gap_position >= -1.0 && l.gap_position <= 1.0,
             [&] { return where() + " key 'gap_position': must lie in [-1, 1]"; });
+    Require(l.recorder_lowpass_Hz >= 0.0 && std::isfinite(l.recorder_lowpass_Hz),
+            [&] { return where() + " recorder low-pass: must be >= 0 Hz and finite"; });
     Require(l.ratio > 0.0 && std::isfinite(l.ratio), [&] {
       return where() + " key 'ratio': must be > 0 (i = ω_from / ω_to; got " +
              FormatNumber(l.ratio) + ")";

@@ -81,7 +81,8 @@ TEST_CASE(
 
 TEST_CASE("Modelling the recorder's anti-alias filter removes its delay from the bite time") {
   // A 800 Hz first-order filter delays the record by 1/(2π·800) ≈ 0.2 ms. With the filter in the
-  // model the bite time comes back to the approximation of the model's 4-point oversampling.
+  // model the bite time comes back to within the generator's own approximation of the filter
+  // (linear between the points of its fine grid).
   constexpr double kLowpass_Hz = 800.0;
   constexpr double kFilterDelay_s = 1.0 / (2.0 * 3.14159265358979 * kLowpass_Hz);
   const Oscillogram record = Mill5Record(0.0, 0, kLowpass_Hz, 1);

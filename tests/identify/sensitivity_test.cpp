@@ -203,20 +203,47 @@ constexpr driveline::ContactLaw kLaws[] = {driveline::ContactLaw::kLimited,
                                            driveline::ContactLaw::kNoPull,
                                            driveline::ContactLaw::kLinear};
 
-TEST_CASE("Sensitivities agree with central differences at 200 points of random lines",
-          "[sensitivity]") {
+// Random lines of seeds first_seed … last_seed, 0.15 s long, the contact law by seed, until
+// `points` points are compared; with `lowpass` a recorder low-pass on the first and the last link,
+// cutoff 0.1–0.4 of the sample rate.
+Tally CompareRandomLines(unsigned long first_seed, unsigned long last_seed, int points,
+                         bool lowpass, std::mt19937_64* random) {
   Tally tally;
-  std::mt19937_64 random(15);
-  for (unsigned long seed = 1; tally.points < 200 && seed <= 260; ++seed) {
+  for (unsigned long seed = first_seed; tally.points < points && seed <= last_seed; ++seed) {
     driveline::Scene scene = identify::MakeRandomLineCase(seed).truth;
     scene.contact = kLaws[seed % 3];
     scene.duration_s = 0.15;
-    ComparePoint(scene, &random, ("seed " + std::to_string(seed)).c_str(), &tally);
+    if (lowpass) {
+      for (const size_t l : {size_t{0}, scene.links.size() - 1}) {
+        const double u = std::uniform_real_distribution<double>(0.1, 0.4)(*random);
+        scene.links[l].recorder_lowpass_Hz = u * scene.sample_rate_Hz;
+      }
+    }
+    ComparePoint(scene, random, ("seed " + std::to_string(seed)).c_str(), &tally);
   }
+  return tally;
+}
+
+TEST_CASE("Sensitivities agree with central differences at 200 points of random lines",
+          "[sensitivity]") {
+  std::mt19937_64 random(15);
+  const Tally tally = CompareRandomLines(1, 260, 200, false, &random);
   tally.Print("random lines");
   CHECK(tally.points >= 200);
   CHECK(tally.noisy <= tally.compared / 100);
   CHECK(tally.unavailable <= 10);
+}
+
+// A recorder low-pass (Link::recorder_lowpass_Hz, what a fit puts on its channels' links) adds a
+// state whose row holds the link's torque row: its sensitivities come through the same pass.
+TEST_CASE("Sensitivities agree with central differences through a recorder low-pass",
+          "[sensitivity]") {
+  std::mt19937_64 random(17);
+  const Tally tally = CompareRandomLines(301, 400, 60, true, &random);
+  tally.Print("random lines through a recorder low-pass");
+  CHECK(tally.points >= 60);
+  CHECK(tally.noisy <= tally.compared / 100);
+  CHECK(tally.unavailable <= 3);
 }
 
 TEST_CASE("Sensitivities agree with central differences on the bundled scenes", "[sensitivity]") {

@@ -3,7 +3,9 @@
 // input breakpoints. Solvers work on the augmented state z = [x; w; w'] whose ODE z' = M z is
 // autonomous, so z(t + τ) = exp(M τ) z(t) exactly (issue 2, exact solver).
 //
-// State x = [ψ of each flexible link, ω of each (merged) mass, (∫(ω_ref − ω) dt, M_drive)].
+// State x = [ψ of each flexible link, ω of each (merged) mass, (∫(ω_ref − ω) dt, M_drive),
+// y of each link with a recorder low-pass (Link::recorder_lowpass_Hz: y' = a (m − y), a = 2π f_c,
+// m the link's torque, linear in z within a phase set, so the filter stays inside z' = M z)].
 // Only what a scene needs: links with b = 0 create no switching surfaces, a scene without a drive
 // has no drive states, and with [scene] band the links whose mode lies far above the band are
 // made rigid and their masses merged (SPEC §2.7).
@@ -153,11 +155,19 @@ class Model {
 
   // Index of a scene link in the flexible-link list (−1 when rigid).
   int FlexibleIndexOf(int scene_link) const { return flexible_index_[scene_link]; }
+  // Index in x of a scene link's recorder low-pass state (−1 without one).
+  int FilterIndexOf(int scene_link) const { return filter_index_[scene_link]; }
   int TwistIndex(int flexible) const { return flexible; }
   int SpeedIndex(int group) const { return flexible_link_count() + group; }
 
  private:
   void BuildSurfaces();
+  // Outputs and LinkTorqueRows with every link's own torque (no recorder low-pass).
+  void OwnOutputs(const Phases& phases, const Eigen::VectorXd& z, double* link_torque,
+                  double* mass_speed, double* link_twist,
+                  const Eigen::MatrixXd* system_matrix) const;
+  Eigen::MatrixXd OwnLinkTorqueRows(const Phases& phases,
+                                    const Eigen::MatrixXd& system_matrix) const;
   Eigen::VectorXd ComputeInitialState() const;
   Eigen::VectorXd ComputeStateScale() const;
   // The torque coefficients of flexible link f in the given phases (the contact law's piece of a
@@ -169,9 +179,13 @@ class Model {
   ShaftFactors shaft_factors_;
   Reduction reduction_;
   int nx_ = 0;
+  int drive_base_ = 0;   // x index of ∫(ω_ref − ω) dt; M_drive follows
+  int filter_base_ = 0;  // x index of the first recorder low-pass state
   int nw_ = 0;
   std::vector<int> flexible_links_;        // scene link indices kept elastic
   std::vector<int> flexible_index_;        // scene link → flexible index or −1
+  std::vector<int> filtered_links_;        // scene links with a recorder low-pass, in x order
+  std::vector<int> filter_index_;          // scene link → x index of its low-pass state or −1
   std::vector<int> backlash_links_;        // flexible indices with b > 0
   std::vector<int> backlash_of_flexible_;  // flexible index → backlash index or −1
   std::vector<double> group_inertia_;

@@ -35,6 +35,11 @@ struct Link {
   double backlash_rad = 0.0;          // b >= 0, TOTAL clearance; dead zone |ψ| <= b/2
   double gap_position = -1.0;         // in [-1, 1]: rest twist = gap_position·b/2 without torque
   double ratio = 1.0;                 // i = ω_from / ω_to > 0; 1: no gear
+  // Not a scene key: set by a fit whose channel on this link records through a first-order
+  // anti-alias low-pass, y' = 2π f_c (m − y), settled at t = 0. When > 0 the model carries y as
+  // a state and reports it as the link's torque (outputs, peaks, sensitivities; a link made rigid
+  // reports that over c as its twist), exactly at any output time; 0: the link's own torque.
+  double recorder_lowpass_Hz = 0.0;
 };
 
 // A piecewise-linear torque on one mass (SPEC §2.3): knots (time, value), linear between knots,

@@ -56,8 +56,11 @@
 
 namespace millkit::identify {
 
-// Model samples per record step where a channel models the recorder's low-pass filter.
-inline constexpr int kFilterOversample = 4;
+// A channel's recorder low-pass runs inside the model (driveline::Link::recorder_lowpass_Hz),
+// exact at the record's times. Only where two channels of one link have different filters is the
+// model sampled at this many points per record step from the record's start and each channel's
+// filter applied as linear between them.
+inline constexpr int kFilterOversample = 16;
 
 // Every knob of the fit's strategy and judgement. The defaults are set by the random-lines
 // benchmark (bench/identify/bench_random_lines.cpp), not by any one scene.
