@@ -7,6 +7,7 @@
 #include <random>
 #include <vector>
 
+#include "identify/instrument_filter.h"
 #include "scene_builder.h"
 #include "support/run_cli.h"
 
@@ -71,21 +72,6 @@ TEST_CASE("The link torque rows reproduce Outputs with a speed drive", "[model]"
 }
 
 namespace {
-// The first-order low-pass y' = a (m − y), settled on m's first value, of a signal linear between
-// its samples (exact for that interpolation).
-std::vector<double> LowPassOfLinear(double cutoff_Hz, const std::vector<double>& t,
-                                    const Eigen::VectorXd& m) {
-  const double a = 2.0 * millkit::driveline::testing::kPi * cutoff_Hz;
-  std::vector<double> y(t.size());
-  y[0] = m[0];
-  for (size_t k = 1; k < t.size(); ++k) {
-    const double delta = t[k] - t[k - 1];
-    const double slope_term = (m[k] - m[k - 1]) / (delta * a);
-    y[k] = m[k] - slope_term + (y[k - 1] - m[k - 1] + slope_term) * std::exp(-a * delta);
-  }
-  return y;
-}
-
 // Runs `scene` with a recorder low-pass on `links` and checks: the exact solver's reported torque
 // of each such link is the low-pass of the link's own torque (unfiltered run sampled `fine` times
 // per step, filtered as linear between samples: that error falls about as fine⁻², less where an
@@ -115,12 +101,16 @@ void CheckRecorderLowPass(Scene scene, const std::vector<int>& links, double cut
     options.output_times = times;
     const SimulationResult fine = Simulate(Model(scene), options);
     REQUIRE(fine.summary.success);
+    // The fine run reports filtered torques: the reference filters the own run's instead (the
+    // record generator's filter, exact for a signal linear between its samples).
+    Scene plain = scene;
+    for (auto& link : plain.links) link.recorder_lowpass_Hz = 0.0;
+    const SimulationResult fine_own = Simulate(Model(plain), options);
+    REQUIRE(fine_own.summary.success);
     for (const int l : links) {
-      // The fine run reports filtered torques: the reference filters the own run's instead.
-      Scene plain = scene;
-      for (auto& link : plain.links) link.recorder_lowpass_Hz = 0.0;
-      const SimulationResult fine_own = Simulate(Model(plain), options);
-      const auto reference = LowPassOfLinear(cutoff_Hz, times, fine_own.link_torque_Nm.col(l));
+      const Eigen::VectorXd column = fine_own.link_torque_Nm.col(l);
+      std::vector<double> reference(column.data(), column.data() + column.size());
+      millkit::identify::FirstOrderLowPass(cutoff_Hz, times, &reference);
       for (int k = 0; k < scene.SampleCount(); ++k) {
         const double value = filtered.link_torque_Nm(k, l);
         error[i] =
