@@ -18,6 +18,7 @@
 #include "millkit/driveline/simulation.h"
 #include "millkit/io/input_error.h"
 #include "millkit/io/number_format.h"
+#include "numerics/median_interval.h"
 
 namespace millkit::identify {
 
@@ -113,18 +114,6 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
                           nullptr);
 }
 
-namespace {
-// The median interval between a record's samples (its sampling interval).
-double MedianStep(const std::vector<double>& time_s) {
-  if (time_s.size() < 2) return 0.0;
-  std::vector<double> gaps(time_s.size() - 1);
-  for (size_t k = 1; k < time_s.size(); ++k) gaps[k - 1] = time_s[k] - time_s[k - 1];
-  std::nth_element(gaps.begin(), gaps.begin() + static_cast<std::ptrdiff_t>(gaps.size() / 2),
-                   gaps.end());
-  return gaps[gaps.size() / 2];
-}
-}  // namespace
-
 bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, double origin_s,
                       const std::vector<ChannelSpec>& channels, int begin, int end,
                       std::vector<Eigen::VectorXd>* torques, std::string* why,
@@ -143,7 +132,7 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
     // between the points: kFilterOversample points per record step, kFastFilterOversample when
     // every filter is above half the rate (its output follows the torque within a step).
     bool shared = true, slow = false, fast = false;
-    const double record_step = MedianStep(record.time_s);
+    const double record_step = numerics::MedianInterval(record.time_s, 0.0);
     for (const auto& a : channels) {
       if (a.lowpass_Hz > 0.0) (a.lowpass_Hz * record_step > 0.5 + 1e-9 ? fast : slow) = true;
       for (const auto& b : channels) {

@@ -46,6 +46,7 @@
 #include "millkit/driveline/simulation.h"
 #include "millkit/io/number_format.h"
 #include "numerics/exp_phi.h"
+#include "numerics/median_interval.h"
 #include "numerics/small_matvec.h"
 
 namespace millkit::driveline {
@@ -181,12 +182,9 @@ void BalanceScale(const Model& model, Eigen::VectorXd* scale) {
 // The step whose propagator is cached per phase set: the scene's sample interval, or for given
 // output times the median gap (an oscillogram's sampling interval).
 double CachedStepLength(const Scene& scene, const SimulationOptions& options) {
-  if (!options.output_times || options.output_times->size() < 2) return 1.0 / scene.sample_rate_Hz;
-  const std::vector<double>& times = *options.output_times;
-  std::vector<double> gaps(times.size() - 1);
-  for (size_t k = 1; k < times.size(); ++k) gaps[k - 1] = times[k] - times[k - 1];
-  std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
-  return gaps[gaps.size() / 2];
+  const double sample_step = 1.0 / scene.sample_rate_Hz;
+  return options.output_times ? numerics::MedianInterval(*options.output_times, sample_step)
+                              : sample_step;
 }
 
 // A plain loop: std::copy of a dozen doubles becomes a call to memmove.

@@ -7,6 +7,7 @@
 #include <limits>
 #include <numeric>
 #include <sstream>
+#include <stdexcept>
 
 #include "millkit/driveline/natural_frequencies.h"
 #include "millkit/io/input_error.h"
@@ -208,7 +209,7 @@ std::vector<double> StaticLinkTorques(const Scene& user_scene) {
   return link_torque;
 }
 
-Model::Model(Scene scene) : user_scene_(std::move(scene)) {
+Model::Model(Scene scene, Use use) : user_scene_(std::move(scene)) {
   ValidateScene(user_scene_);
   // Everything below works on the reference shaft; outputs go back through the factors.
   scene_ = ReducedScene(user_scene_);
@@ -249,10 +250,20 @@ Model::Model(Scene scene) : user_scene_(std::move(scene)) {
   nx_ = filter_base_ + static_cast<int>(filtered_links_.size());
   nw_ = 1 + static_cast<int>(scene_.torques.size());
   BuildSurfaces();
-  // Both depend on the scene only; every run needs them.
+  // All three depend on the scene only; every run needs them. The phases do not read the
+  // recorder low-pass states (no surface does, and nothing else depends on them), so they are
+  // found before those states are settled on the initial torques.
   initial_state_ = ComputeInitialState();
-  state_scale_ = ComputeStateScale();
   initial_phases_ = InitialPhases(initial_state_);
+  SettleFilters(&initial_state_);
+  if (use == Use::kRun) state_scale_ = ComputeStateScale();
+}
+
+Eigen::VectorXd Model::StateScale() const {
+  if (state_scale_.size() == 0) {
+    throw std::logic_error("Model::StateScale: the model was built for its coefficients only");
+  }
+  return state_scale_;
 }
 
 void Model::BuildSurfaces() {
@@ -513,14 +524,14 @@ Eigen::VectorXd Model::ComputeInitialState() const {
     z[drive_base_ + 1] = drive_torque;
   }
   SetForcing(0.0, &z);
-  if (!filtered_links_.empty()) {
-    // The recorder's filters start settled on the torques the line starts with (the low-pass
-    // states do not enter the phases: no surface reads them).
-    const Phases phases = InitialPhases(z);
-    const Eigen::MatrixXd torque = OwnLinkTorqueRows(phases, SystemMatrix(phases));
-    for (const int l : filtered_links_) z[filter_index_[l]] = torque.row(l).dot(z);
-  }
   return z;
+}
+
+void Model::SettleFilters(Eigen::VectorXd* z) const {
+  if (filtered_links_.empty()) return;
+  // The recorder's filters start settled on the torques the line starts with.
+  const Eigen::MatrixXd torque = OwnLinkTorqueRows(initial_phases_, SystemMatrix(initial_phases_));
+  for (const int l : filtered_links_) (*z)[filter_index_[l]] = torque.row(l).dot(*z);
 }
 
 void Model::SetForcing(double t, Eigen::VectorXd* z) const {
@@ -679,7 +690,7 @@ Eigen::VectorXd Model::ComputeStateScale() const {
       forcing_scale[1 + s] = std::max(forcing_scale[1 + s], std::abs(v));
     }
   }
-  std::vector<Phases> sets{InitialPhases(z0)};  // initial_phases_ is not set yet
+  std::vector<Phases> sets{initial_phases_};
   for (const LinkPhase link : {LinkPhase::kPosSpringDamper, LinkPhase::kDead}) {
     Phases phases(backlash_link_count() + (has_drive() ? 1 : 0), static_cast<char>(link));
     if (has_drive()) phases.back() = static_cast<char>(DrivePhase::kLinear);

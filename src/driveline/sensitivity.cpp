@@ -573,7 +573,8 @@ SensitivityResult SimulateWithSensitivities(const Scene& scene,
       Scene perturbed = scene;
       parameter.Set(value + offset * entry.step, &perturbed);
       try {
-        entry.models.push_back(std::make_unique<Model>(std::move(perturbed)));
+        entry.models.push_back(
+            std::make_unique<Model>(std::move(perturbed), Model::Use::kCoefficients));
       } catch (const InputError& error) {
         result.unavailable = parameter.name + ": the scene at a neighbouring value is invalid (" +
                              error.what() + ")";

@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <random>
+#include <stdexcept>
 #include <vector>
 
 #include "identify/instrument_filter.h"
@@ -176,4 +177,21 @@ TEST_CASE("A recorder low-pass in the model is the filter of the link's own torq
     CheckRecorderLowPass(LoadScene(millkit::testing::SourcePath("datasets/scenes/drive_pi.toml")),
                          {0}, 200.0);
   }
+}
+
+TEST_CASE("A model built for its coefficients has a run's coefficients and no state scale",
+          "[model]") {
+  Scene scene = LoadScene(millkit::testing::SourcePath("datasets/scenes/drive_pi.toml"));
+  scene.links[0].recorder_lowpass_Hz = 200.0;  // its settled initial state reads the phases
+  const Model run(scene);
+  const Model coefficients(scene, Model::Use::kCoefficients);
+  CHECK(coefficients.InitialState() == run.InitialState());
+  CHECK(coefficients.InitialPhases() == run.InitialPhases());
+  CHECK(coefficients.surfaces() == run.surfaces());
+  const Phases& phases = run.InitialPhases();
+  CHECK(coefficients.SystemMatrix(phases) == run.SystemMatrix(phases));
+  CHECK(coefficients.LinkTorqueRows(phases, coefficients.SystemMatrix(phases)) ==
+        run.LinkTorqueRows(phases, run.SystemMatrix(phases)));
+  CHECK(run.StateScale().size() == run.state_size());
+  CHECK_THROWS_AS(coefficients.StateScale(), std::logic_error);
 }

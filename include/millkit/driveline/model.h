@@ -77,8 +77,12 @@ std::vector<double> StaticLinkTorques(const Scene& scene);
 
 class Model {
  public:
+  // What the model is built for: a run (the default), or only its coefficients (SystemMatrix,
+  // surfaces, InitialState, LinkTorqueRows, SetForcing), as the stencil neighbours of a
+  // sensitivity run are; such a model has no StateScale(), which only a run needs.
+  enum class Use { kRun, kCoefficients };
   // Throws InputError for an invalid scene (ValidateScene).
-  explicit Model(Scene scene);
+  explicit Model(Scene scene, Use use = Use::kRun);
 
   // The scene as given (gear ratios and the units of each shaft).
   const Scene& scene() const { return user_scene_; }
@@ -148,8 +152,9 @@ class Model {
   // × augmented size) for the given phases; `system_matrix` is SystemMatrix(phases).
   Eigen::MatrixXd LinkTorqueRows(const Phases& phases, const Eigen::MatrixXd& system_matrix) const;
 
-  // Typical magnitude of each x component (for absolute tolerances and error norms).
-  Eigen::VectorXd StateScale() const { return state_scale_; }
+  // Typical magnitude of each x component (for absolute tolerances and error norms). Throws
+  // std::logic_error on a model built for its coefficients only.
+  Eigen::VectorXd StateScale() const;
   // Human-readable name of the phases, e.g. "upper_spindle:+sd lower_spindle:dead drive:lin".
   std::string DescribePhases(const Phases& phases) const;
 
@@ -168,7 +173,11 @@ class Model {
                   const Eigen::MatrixXd* system_matrix) const;
   Eigen::MatrixXd OwnLinkTorqueRows(const Phases& phases,
                                     const Eigen::MatrixXd& system_matrix) const;
+  // The initial state but its recorder low-pass states (zero), which SettleFilters then sets to
+  // the filtered links' torques in initial_phases_.
   Eigen::VectorXd ComputeInitialState() const;
+  void SettleFilters(Eigen::VectorXd* z) const;
+  // After initial_state_ and initial_phases_.
   Eigen::VectorXd ComputeStateScale() const;
   // The torque coefficients of flexible link f in the given phases (the contact law's piece of a
   // backlash link, the plain spring-damper otherwise).
