@@ -131,20 +131,17 @@ Eigen::VectorXd AugmentedScale(const Model& model, double h) {
 }
 
 // Rebalances the state part of `scale` (Osborne's iteration in powers of 2) on |M| of the phase
-// sets that carry the most coupling: the initial ones, every backlash link in contact or dead with
-// a linear drive. The model's scales follow each link's and the drive's own magnitudes; where a
-// loop couples them at very different scales (a drive with kp/lag far above limit/J) the scaled
-// matrix's norm, and with it the cost of a step and the looseness of every bound, is far above the
-// fastest rate of the motion. The balanced scales are taken only when they cut the norm by more
-// than kBalanceGain, so well-scaled scenes keep their scales, and their roundoff, exactly.
+// sets that carry the most coupling (Model::CouplingPhaseSets). The model's scales follow each
+// link's and the drive's own magnitudes; where a loop couples them at very different scales (a
+// drive with kp/lag far above limit/J) the scaled matrix's norm, and with it the cost of a step and
+// the looseness of every bound, is far above the fastest rate of the motion. The balanced scales
+// are taken only when they cut the norm by more than kBalanceGain, so well-scaled scenes keep their
+// scales, and their roundoff, exactly.
 constexpr double kBalanceGain = 8.0;
 void BalanceScale(const Model& model, Eigen::VectorXd* scale) {
   const int n = model.augmented_size(), nx = model.state_size();
-  Eigen::MatrixXd magnitude = model.SystemMatrix(model.InitialPhases()).cwiseAbs();
-  const int links = model.backlash_link_count();
-  for (LinkPhase link : {LinkPhase::kPosSpringDamper, LinkPhase::kDead}) {
-    Phases phases(links + (model.has_drive() ? 1 : 0), static_cast<char>(link));
-    if (model.has_drive()) phases.back() = static_cast<char>(DrivePhase::kLinear);
+  Eigen::MatrixXd magnitude = Eigen::MatrixXd::Zero(n, n);
+  for (const Phases& phases : model.CouplingPhaseSets()) {
     magnitude = magnitude.cwiseMax(model.SystemMatrix(phases).cwiseAbs());
   }
   auto scaled_norm = [&](const Eigen::VectorXd& d) {

@@ -690,13 +690,7 @@ Eigen::VectorXd Model::ComputeStateScale() const {
       forcing_scale[1 + s] = std::max(forcing_scale[1 + s], std::abs(v));
     }
   }
-  std::vector<Phases> sets{initial_phases_};
-  for (const LinkPhase link : {LinkPhase::kPosSpringDamper, LinkPhase::kDead}) {
-    Phases phases(backlash_link_count() + (has_drive() ? 1 : 0), static_cast<char>(link));
-    if (has_drive()) phases.back() = static_cast<char>(DrivePhase::kLinear);
-    sets.push_back(phases);
-  }
-  for (const Phases& phases : sets) {
+  for (const Phases& phases : CouplingPhaseSets()) {
     const Eigen::MatrixXd torque = OwnLinkTorqueRows(phases, SystemMatrix(phases));
     for (const int l : filtered_links_) {
       double terms = 0.0;
@@ -707,6 +701,16 @@ Eigen::VectorXd Model::ComputeStateScale() const {
     }
   }
   return scale;
+}
+
+std::vector<Phases> Model::CouplingPhaseSets() const {
+  std::vector<Phases> sets{initial_phases_};
+  for (const LinkPhase link : {LinkPhase::kPosSpringDamper, LinkPhase::kDead}) {
+    Phases phases(backlash_link_count() + (has_drive() ? 1 : 0), static_cast<char>(link));
+    if (has_drive()) phases.back() = static_cast<char>(DrivePhase::kLinear);
+    sets.push_back(phases);
+  }
+  return sets;
 }
 
 std::string Model::DescribePhases(const Phases& phases) const {

@@ -134,6 +134,10 @@ class Model {
   Phases InitialPhases(const Eigen::VectorXd& z0) const;
   // InitialPhases(InitialState()), computed once.
   const Phases& InitialPhases() const { return initial_phases_; }
+  // The phase sets that carry the most coupling: the initial ones, every backlash link in
+  // contact, and every one dead (a drive linear in both). The state scale and the exact
+  // solver's balancing read the system matrix over these.
+  std::vector<Phases> CouplingPhaseSets() const;
 
   // Initial augmented state (SPEC §2.4): speeds initial.speed, quasi-static twists under the
   // loads at t = 0, gap_position·b/2 on links carrying no static torque, drive in steady state.
