@@ -5,6 +5,7 @@
 #include <cmath>
 #include <iomanip>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "identify/fit_model.h"
@@ -404,10 +405,12 @@ FitResult Fit(const driveline::Scene& scene, const Oscillogram& record, const Fi
 namespace {
 
 // The best minimum described: values and standard errors (covariance widened where the profile is
-// flatter), identifiability, channels, correlations. Sets lower_found when a profile probe found a
-// lower cost. False when the best minimum does not simulate.
+// flatter), identifiability, channels, correlations. Sets `lower` to the lowest point a profile
+// probe found below the minimum's cost (empty when none). False when the best minimum does not
+// simulate.
 bool DescribeBest(const FitModel& model, const Search& search, const RecordAssessment& assessment,
-                  const FitOptions& options, FitResult* result, bool* lower_found) {
+                  const FitOptions& options, FitResult* result,
+                  std::optional<ProfileProbe>* lower) {
   auto& summary = result->summary;
   const std::vector<double>& u = search.minima[search.best].u;
   Eigen::VectorXd r;
@@ -427,7 +430,7 @@ bool DescribeBest(const FitModel& model, const Search& search, const RecordAsses
   Eigen::MatrixXd covariance = Covariance(jac, fitted, summary.noise_scale);
   const auto widening =
       ProfileWidening(model, u, jac, fitted, covariance, summary.cost, summary.noise_scale, options,
-                      search.probes, search.bound_walks, lower_found);
+                      search.probes, search.bound_walks, lower);
   const Eigen::MatrixXd linearised = covariance;
   WidenAlongProfiles(widening, &covariance);
   std::string widened;
@@ -573,18 +576,34 @@ FitResult FitInNewtonMetres(const driveline::Scene& scene, const std::vector<Osc
     return fail("the start point does not simulate: " + model.last_failure());
   }
   // Every local minimum the global search finds, the best one checked around.
-  const Search search = GlobalSearch(&model, config, options, assessment.noise, start);
+  Search search = GlobalSearch(&model, config, options, assessment.noise, start);
   if (search.best < 0) {
     std::string message = "no start converged to a usable solution";
     if (!model.last_failure().empty()) message += " (last failure: " + model.last_failure() + ")";
     return fail(message);
   }
-  // Its values, standard errors and identifiability; then the verdict.
-  bool lower_found = false;
-  model.set_activity("standard errors");
-  if (!DescribeBest(model, search, assessment, options, &result, &lower_found)) {
-    return fail("the solution does not simulate: " + model.last_failure());
+  // Its values, standard errors and identifiability; then the verdict. A profile probe below the
+  // best minimum (Levenberg–Marquardt stopped on the misfit's rough floor, or in a valley that
+  // goes on) is gone on from, as an axis probe below it is in the search, up to
+  // profile_restarts times.
+  std::optional<ProfileProbe> lower;
+  for (int restart = 0;; ++restart) {
+    model.set_activity("standard errors");
+    FitResult described = result;
+    if (!DescribeBest(model, search, assessment, options, &described, &lower)) {
+      return fail("the solution does not simulate: " + model.last_failure());
+    }
+    if (!lower.has_value() || restart >= options.profile_restarts) {
+      result = std::move(described);
+      break;
+    }
+    model.set_activity("going on below the best minimum");
+    if (!GoOnBelowBest(&model, options, lower->u, &search)) {
+      result = std::move(described);
+      break;
+    }
   }
+  const bool lower_found = lower.has_value();
   ListMinima(model, search, &result);
   summary.success = true;
   if (lower_found) {

@@ -463,16 +463,25 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
         lower = &probe;
       }
     }
-    if (lower == nullptr) break;
-    LocalFit fit = Refine(*model, options, lower->u, true, options.max_iterations);
-    fit.start = -1;
-    minima.push_back(std::move(fit));
-    const int previous = search.best;
-    search.best = lowest();
-    if (search.best == previous) break;
-    search.probes = ProfileProbes(*model, minima[search.best].u, options);
+    if (lower == nullptr ||
+        !GoOnBelowBest(model, options, std::vector<double>(lower->u), &search)) {
+      break;
+    }
   }
   return search;
+}
+
+bool GoOnBelowBest(FitModel* model, const FitOptions& options, const std::vector<double>& u,
+                   Search* search) {
+  auto& minima = search->minima;
+  LocalFit fit = Refine(*model, options, u, true, options.max_iterations);
+  fit.start = -1;
+  const bool lower = fit.usable && fit.cost < minima[search->best].cost;
+  minima.push_back(std::move(fit));
+  if (!lower) return false;
+  search->best = static_cast<int>(minima.size()) - 1;
+  search->probes = ProfileProbes(*model, minima[search->best].u, options);
+  return true;
 }
 
 }  // namespace millkit::identify

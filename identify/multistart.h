@@ -85,4 +85,10 @@ struct Search {
 Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& options,
                     const std::vector<ChannelNoise>& noise, const std::vector<double>& start);
 
+// Levenberg–Marquardt on the whole window from u, a point a probe found below the best minimum;
+// the fit joins the minima (start −1). When it ends below the best, it becomes the best, the
+// axis probes are taken around it, and the function returns true.
+bool GoOnBelowBest(FitModel* model, const FitOptions& options, const std::vector<double>& u,
+                   Search* search);
+
 }  // namespace millkit::identify

@@ -343,11 +343,14 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
                                     const Eigen::MatrixXd& covariance, double best_cost,
                                     double noise_scale, const FitOptions& options,
                                     const std::vector<ProfileProbe>& probes,
-                                    const std::vector<ProfileProbe>& bound_walks, bool* lower_found,
-                                    int* relaxed_walks) {
+                                    const std::vector<ProfileProbe>& bound_walks,
+                                    std::optional<ProfileProbe>* lower, int* relaxed_walks) {
   const int p = model.parameters();
   std::vector<double> widening(p, 1.0);
-  *lower_found = false;
+  lower->reset();
+  const auto found_lower = [lower](int slot, const std::vector<double>& point, double cost) {
+    if (!lower->has_value() || cost < (*lower)->cost) *lower = ProfileProbe{slot, point, cost};
+  };
   if (relaxed_walks != nullptr) *relaxed_walks = 0;
   const double step = options.profile_step;
   const double predicted = 0.5 * step * step * noise_scale * noise_scale;
@@ -380,6 +383,7 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
       if (probe.empty() || !model.ProjectedResiduals(probe.data(), &r)) continue;
       const double rise = 0.5 * r.squaredNorm() - best_cost;
       flattest = std::min(flattest, rise);
+      if (rise < 0.0) found_lower(i, probe, best_cost + rise);
       if (!relax || !(rise >= 0.0)) continue;
       // Where the straight probe rises far above the prediction, the valley bends sharply and the
       // step with the minimum's Jacobian says little: that side is followed in any case.
@@ -400,14 +404,13 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
         const LocalFit held = Refine(model, options, start, false, options.profile_iterations, {i});
         if (!held.usable) break;
         const double chi2 = (held.cost - best_cost) * chi2_per_cost;
-        if (chi2 < -1.0) *lower_found = true;
+        if (chi2 < -1.0) found_lower(i, held.u, held.cost);
         if (!(chi2 < options.profile_chi2)) break;
         widening[i] = std::max(widening[i], implied(start[i], chi2));
         followed.push_back({i, held.u, held.cost});
       }
     }
     if (flattest < 0.0) {
-      *lower_found = true;
       widening[i] = std::numeric_limits<double>::infinity();
       continue;
     }
@@ -419,7 +422,7 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
       if (probe.slot != i) continue;
       const double chi2 = (probe.cost - best_cost) * chi2_per_cost;
       if (chi2 < 0.0) {
-        *lower_found = true;
+        found_lower(i, probe.u, probe.cost);
         continue;
       }
       if (!(chi2 < options.profile_chi2)) continue;

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <optional>
 #include <vector>
 
 #include "identify/fit_model.h"
@@ -81,14 +82,15 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
 // with a χ² below profile_chi2 widens every parameter p it moved by d_p to d_p / √max(χ², 1):
 // in the quadratic picture the linearisation draws, no point at χ² lies further than √χ²
 // standard errors in any parameter. Returns the widening factor per scene slot (1 where none), sets
-// `lower_found` when a probe found a cost below the minimum's (the fit had not reached its
-// minimum), and counts the followed sides in `relaxed_walks` when given.
+// `lower` to the lowest point a probe found below the minimum's cost (the fit had not reached its
+// minimum; empty when none did), and counts the followed sides in `relaxed_walks` when given.
 std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,
                                     const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted,
                                     const Eigen::MatrixXd& covariance, double best_cost,
                                     double noise_scale, const FitOptions& options,
                                     const std::vector<ProfileProbe>& probes,
-                                    const std::vector<ProfileProbe>& bound_walks, bool* lower_found,
+                                    const std::vector<ProfileProbe>& bound_walks,
+                                    std::optional<ProfileProbe>* lower,
                                     int* relaxed_walks = nullptr);
 
 // Widens `covariance` (scene slots first, as Covariance) by ProfileWidening's factors. A

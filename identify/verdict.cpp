@@ -126,9 +126,9 @@ void JudgeFit(const FitModel& model, const std::vector<ChannelNoise>& noise,
     }
   }
 
-  // The best minimum reached only from a hop, a gap kick, a probe or a followed profile (start
-  // −1), well below every start's fit: the search's starts missed that valley, and nothing says
-  // they did not miss a lower one.
+  // The best minimum reached only from a hop, a gap kick, a followed valley or a probe below a
+  // minimum (start −1), well below every start's fit: the search's starts missed that valley, and
+  // nothing says they did not miss a lower one.
   bool missed_by_starts = false;
   if (chosen.start < 0) {
     double best_start = std::numeric_limits<double>::infinity();
@@ -139,8 +139,8 @@ void JudgeFit(const FitModel& model, const std::vector<ChannelNoise>& noise,
     if (below > options.ambiguity_chi2) {
       missed_by_starts = true;
       warnings.push_back(
-          "the best minimum was reached only by a basin hop, a gap kick, an axis probe or a "
-          "followed profile, at a chi2 " +
+          "the best minimum was reached only by a basin hop, a gap kick, a followed valley or a "
+          "restart from a probe below a minimum, at a chi2 " +
           (std::isfinite(below) ? ShortNumber(below) + " below the best of the " +
                                       std::to_string(summary.starts) + " starts' fits"
                                 : std::string("below every start's fit")) +

@@ -68,4 +68,7 @@ slow+="|verdict not_converged: a lower valley found along a sharply curved one"
 slow+="|standard errors: a profile whose valley bends sharply is followed"
 slow+="|standard errors: a profile that bends 10 to 30 times the prediction is followed"
 slow+="|verdict ok: starts scattered over many valleys run the search again"
+# Random line 384 under the no_pull law fitted twice, with and without going on from a profile
+# probe below the minimum (the same GoOnBelowBest as the search's axis-probe restarts).
+slow+="|verdict ok: a profile probe below the minimum is gone on from"
 ctest --output-on-failure -j "$(nproc)" -LE package -E "$slow"

@@ -10,6 +10,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <random>
 
 #include "identify/multistart.h"
@@ -161,17 +162,17 @@ TEST_CASE("The profile check follows a valley that curves away from the straight
 
   identify::FitOptions straight_only;
   straight_only.profile_relax_widening = 0.0;
-  bool lower = true;
+  std::optional<identify::ProfileProbe> lower = identify::ProfileProbe{};
   int walks = -1;
   const auto straight =
       identify::ProfileWidening(model, minimum.u, jacobian, fitted, covariance, cost, noise_scale,
                                 straight_only, {}, {}, &lower, &walks);
-  CHECK_FALSE(lower);
+  CHECK_FALSE(lower.has_value());
   CHECK(walks == 0);
   const auto relaxed =
       identify::ProfileWidening(model, minimum.u, jacobian, fitted, covariance, cost, noise_scale,
                                 options, {}, {}, &lower, &walks);
-  CHECK_FALSE(lower);
+  CHECK_FALSE(lower.has_value());
   CHECK(walks >= 1);
   for (int i = 0; i < p; ++i) {
     const std::string& name = model.slot(i).name;
@@ -213,7 +214,7 @@ TEST_CASE("A held point widens every standard error it moved further than its ch
   REQUIRE(linear.size() >= 2);
   const int slot = linear[0];
   const int other = linear[1];
-  bool lower = false;
+  std::optional<identify::ProfileProbe> lower;
   const auto without =
       identify::ProfileWidening(model, fixture.minimum.u, at.jacobian, at.fitted, at.covariance,
                                 at.cost, at.noise_scale, options, {}, {}, &lower);

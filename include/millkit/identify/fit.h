@@ -131,7 +131,8 @@ struct FitOptions {
   // The profile check of the standard errors probes ± profile_step standard errors, and each
   // parameter's axis at profile_points points; an axis probe within profile_chi2 of the best χ²
   // widens the standard error (identify/uncertainty.h). A probe below the best cost restarts
-  // Levenberg–Marquardt from it, up to profile_restarts times.
+  // Levenberg–Marquardt from it, up to profile_restarts times in the search (the axis probes)
+  // and as many again in the standard errors' check (its profile probes and held points).
   double profile_step = 2.0;
   int profile_points = 8;
   double profile_chi2 = 25.0;
