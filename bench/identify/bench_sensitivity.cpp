@@ -5,7 +5,9 @@
 // (mill5_bite with its two-spindle record and fit config) and on random lines (the truth, their
 // default fit configs), at the parameter values the fit starts from.
 //
-// Usage: bench_sensitivity [--cases N (20)] [--repeats R (5)] [--profile RUNS]
+// Usage: bench_sensitivity [--cases N (20)] [--repeats R (5)] [--variant V[+V]] [--profile RUNS]
+// --variant draws the random lines as bench_random_lines does (lowpass: a recorder low-pass on
+// the channels, no-pull, linear, ...).
 // Reports per case the wall time of one plain simulation, one with sensitivities, P + 1 and
 // 2P + 1 simulations, and the error of each Jacobian (largest difference from the reference over
 // its largest entry, per parameter, worst parameter).
@@ -86,6 +88,7 @@ int main(int argc, char** argv) {
   int cases = 20;
   int repeats = 5;
   int profile = 0;  // > 0: only this many sensitivity runs of the bundled bite (for a profiler)
+  std::vector<RandomLineVariant> variants;
   for (int i = 1; i < argc; i += 2) {
     const std::string flag = argv[i];
     if (flag == "--cases" && i + 1 < argc) {
@@ -94,8 +97,12 @@ int main(int argc, char** argv) {
       repeats = std::atoi(argv[i + 1]);
     } else if (flag == "--profile" && i + 1 < argc) {
       profile = std::atoi(argv[i + 1]);
+    } else if (flag == "--variant" && i + 1 < argc &&
+               ParseRandomLineVariants(argv[i + 1], &variants)) {
     } else {
-      std::fprintf(stderr, "usage: %s [--cases N (20)] [--repeats R (5)] [--profile RUNS]\n",
+      std::fprintf(stderr,
+                   "usage: %s [--cases N (20)] [--repeats R (5)] [--variant V[+V]] "
+                   "[--profile RUNS]\n",
                    argv[0]);
       return 2;
     }
@@ -120,7 +127,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   for (int k = 1; k <= cases; ++k) {
-    const RandomLineCase line = MakeRandomLineCase(static_cast<unsigned long>(k));
+    const RandomLineCase line = MakeRandomLineCase(static_cast<unsigned long>(k), variants);
     all.push_back({"seed " + std::to_string(k), line.prior, line.record, line.config});
   }
   std::printf("## One Jacobian of the simulated channels: sensitivities vs finite differences\n\n");

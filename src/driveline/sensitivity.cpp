@@ -15,6 +15,7 @@
 
 #include "driveline/hybrid_driver.h"
 #include "millkit/io/input_error.h"
+#include "numerics/exponential_moments.h"
 
 namespace millkit::driveline {
 namespace {
@@ -97,13 +98,14 @@ struct ParameterModels {
   Stencil stencil;
   std::vector<std::unique_ptr<Model>> models;  // per stencil offset; null for offset 0
   bool bite_time = false;
-  // d/dp of a model quantity: Σ weight · f(model at offset) / δ.
+  // d/dp of a model quantity: Σ weight · f(model at offset) / δ; `quantity` is called with each
+  // stencil model and its index k.
   template <typename Quantity>
   Eigen::MatrixXd Derivative(const Model& nominal, const Quantity& quantity) const {
     Eigen::MatrixXd sum;
     for (size_t k = 0; k < models.size(); ++k) {
       const Model& model = models[k] ? *models[k] : nominal;
-      Eigen::MatrixXd value = quantity(model);
+      Eigen::MatrixXd value = quantity(model, k);
       if (k == 0)
         sum = stencil.weights[k] * value;
       else
@@ -122,17 +124,32 @@ struct Entry {
 // Everything the pass needs of one phase set. S̃ is n × P, row-major, so row i holds component
 // i of every parameter's sensitivity; a stack of per-parameter matrices has row i P + j for
 // parameter j's row i, and one product with a vector gives all of S̃'s update at once.
+//
+// Sink rows: a state ỹ_r' = −a_r ỹ_r + (other states) that no other row reads (its column of M̃
+// and of every M̃_j is zero off the diagonal, and a_r > 0): a recorder low-pass. Over a piece
+// of length τ the other rows are a Taylor polynomial Σ_k X_k (σ/τ)^k, and a sink row takes it
+// exactly, ỹ_r(τ) = e^{−a_r τ} ỹ_r(0) + τ Σ_k g_k(−a_r τ) (M̃ X_k)_r
+// (numerics/exponential_moments.h), so the series' pieces pay for the line's rates, not for the
+// filter's (an 800 Hz low-pass is 5027 /s against a few hundred for the line).
 struct PhaseSet {
   Eigen::MatrixXd m;                 // M (unscaled)
   Eigen::MatrixXd m_scaled;          // M̃
   std::vector<Entry> sparse;         // M̃'s non-zeros
   std::vector<Eigen::MatrixXd> m_p;  // M̃_j (empty when M_j = 0)
-  std::vector<Entry> sparse_p;       // the non-zeros of every M̃_j: row i P + j
-  Eigen::MatrixXd torque;            // T: reduced link torques = T z
-  Eigen::MatrixXd torque_scaled;     // T D, per link factor: the recorded links' torques of ỹ
-  Eigen::MatrixXd torque_p;          // T_j per link factor, stacked (row j links + l); built on
-  bool has_torque_p = false;         // the first output in the phase set
-  double norm = 0.0;  // ‖[M̃ M̃_j; 0 M̃]‖∞ <= ‖M̃‖∞ + max ‖M̃_j‖∞
+  // The system matrix of each parameter's stencil models (unscaled; empty for the nominal).
+  std::vector<std::vector<Eigen::MatrixXd>> stencil_m;
+  std::vector<Entry> sparse_p;      // the non-zeros of every M̃_j: row i P + j
+  std::vector<Eigen::Index> sinks;  // the sink rows
+  std::vector<double> sink_rate;    // a_r
+  std::vector<Entry> core;          // M̃'s non-zeros in the other rows
+  std::vector<Entry> core_p;        // sparse_p's in the other rows
+  std::vector<Entry> sink_in;       // M̃'s non-zeros in sink rows off the diagonal: row r (sink)
+  std::vector<Entry> sink_in_p;     // sparse_p's in sink rows: row r P + j
+  Eigen::MatrixXd torque;           // T: reduced link torques = T z
+  Eigen::MatrixXd torque_scaled;    // T D, per link factor: the recorded links' torques of ỹ
+  Eigen::MatrixXd torque_p;         // T_j per link factor, stacked (row j links + l); built on
+  bool has_torque_p = false;        // the first output in the phase set
+  double norm = 0.0;  // of the other rows: ‖[M̃ M̃_j; 0 M̃]‖∞ <= ‖M̃‖∞ + max ‖M̃_j‖∞
   // Building the propagators over the step costs P exponentials of 2n × 2n; a full step then
   // costs 2 n² P instead of a Taylor series. They are built once the Taylor work of the full
   // steps so far exceeds the building's.
@@ -168,7 +185,7 @@ class SensitivityPass final : public HybridObserver {
     surfaces_p_.resize(p_);
     for (int j = 0; j < p_; ++j) {
       surfaces_p_[j] = parameters_[j].Derivative(
-          model_, [](const Model& m) -> Eigen::MatrixXd { return m.surfaces(); });
+          model_, [](const Model& m, size_t) -> Eigen::MatrixXd { return m.surfaces(); });
     }
   }
 
@@ -184,7 +201,7 @@ class SensitivityPass final : public HybridObserver {
     y_next_.setZero(n_);
     for (int j = 0; j < p_; ++j) {
       const Eigen::VectorXd ds = parameters_[j].Derivative(
-          model_, [](const Model& m) -> Eigen::MatrixXd { return m.InitialState(); });
+          model_, [](const Model& m, size_t) -> Eigen::MatrixXd { return m.InitialState(); });
       Eigen::VectorXd s = ds;
       // A given initial state (options.initial_state) holds x whatever the parameters.
       if (given_state_) s.head(model_.state_size()).setZero();
@@ -257,7 +274,7 @@ class SensitivityPass final : public HybridObserver {
         s.segment(nx + nw, nw).setZero();
       } else {
         const Eigen::VectorXd forcing =
-            parameter.Derivative(model_, [&](const Model& m) -> Eigen::MatrixXd {
+            parameter.Derivative(model_, [&](const Model& m, size_t) -> Eigen::MatrixXd {
               Eigen::VectorXd right = z;
               m.SetForcing(breakpoint, &right);
               return right.tail(2 * nw);
@@ -278,9 +295,11 @@ class SensitivityPass final : public HybridObserver {
       data.torque_p.resize(links * p_, n_);
       for (int j = 0; j < p_; ++j) {
         data.torque_p.middleRows(j * links, links) =
-            link_inverse_.asDiagonal() * parameters_[j].Derivative(model_, [&](const Model& m) {
-              return Eigen::MatrixXd(
-                  m.LinkTorqueRows(phases, m.SystemMatrix(phases))(links_, Eigen::all));
+            link_inverse_.asDiagonal() *
+            parameters_[j].Derivative(model_, [&](const Model& m, size_t k) {
+              const Eigen::MatrixXd& system =
+                  data.stencil_m[j][k].size() != 0 ? data.stencil_m[j][k] : data.m;
+              return Eigen::MatrixXd(m.LinkTorqueRows(phases, system)(links_, Eigen::all));
             });
       }
       data.has_torque_p = true;
@@ -312,27 +331,30 @@ class SensitivityPass final : public HybridObserver {
     PhaseSet& data = cache_[phases];
     data.m = model_.SystemMatrix(phases);
     data.m_scaled = d_inverse_.asDiagonal() * data.m * d_.asDiagonal();
-    data.norm = data.m_scaled.cwiseAbs().rowwise().sum().maxCoeff();
-    double largest_p = 0.0;
     for (int i = 0; i < n_; ++i) {
       for (int c = 0; c < n_; ++c) {
         if (data.m_scaled(i, c) != 0.0) data.sparse.push_back({i, c, data.m_scaled(i, c)});
       }
     }
     data.m_p.resize(p_);
+    data.stencil_m.resize(p_);
     for (int j = 0; j < p_; ++j) {
-      const Eigen::MatrixXd mp = parameters_[j].Derivative(
-          model_, [&](const Model& m) -> Eigen::MatrixXd { return m.SystemMatrix(phases); });
+      data.stencil_m[j].resize(parameters_[j].models.size());
+      const Eigen::MatrixXd mp =
+          parameters_[j].Derivative(model_, [&](const Model& m, size_t k) -> Eigen::MatrixXd {
+            if (&m == &model_) return data.m;
+            data.stencil_m[j][k] = m.SystemMatrix(phases);
+            return data.stencil_m[j][k];
+          });
       if (mp.cwiseAbs().maxCoeff() == 0.0) continue;
       data.m_p[j] = parameters_[j].magnitude * (d_inverse_.asDiagonal() * mp * d_.asDiagonal());
-      largest_p = std::max(largest_p, data.m_p[j].cwiseAbs().rowwise().sum().maxCoeff());
       for (int i = 0; i < n_; ++i) {
         for (int c = 0; c < n_; ++c) {
           if (data.m_p[j](i, c) != 0.0) data.sparse_p.push_back({i * p_ + j, c, data.m_p[j](i, c)});
         }
       }
     }
-    data.norm += largest_p;
+    SplitSinks(&data);
     data.torque = model_.LinkTorqueRows(phases, data.m);
     data.torque_scaled =
         link_inverse_.asDiagonal() * data.torque(links_, Eigen::all) * d_.asDiagonal();
@@ -340,12 +362,79 @@ class SensitivityPass final : public HybridObserver {
     return data;
   }
 
+  // The sink rows of a phase set (see PhaseSet), its non-zeros split between them and the other
+  // rows, and the other rows' norm. No parameter moves a low-pass's rate; the stencil leaves
+  // roundoff on a sink's own entry of M̃_j (the rate's stencil sum), which is dropped.
+  void SplitSinks(PhaseSet* data) const {
+    constexpr double kRoundoff = 1e-6;  // relative to the rate; a rate's sensitivity is O(1)
+    // Whether a column is read off its diagonal (by M̃, or by M̃_j beyond the roundoff).
+    std::vector<char> read(n_, 0);
+    for (const Entry& entry : data->sparse) read[entry.col] |= entry.col != entry.row;
+    for (const Entry& entry : data->sparse_p) {
+      read[entry.col] |=
+          entry.row / p_ != entry.col ||
+          !(std::abs(entry.value) <= -kRoundoff * data->m_scaled(entry.col, entry.col));
+    }
+    std::vector<Eigen::Index> sink_of(n_, -1);
+    for (Eigen::Index i = 0; i < nx_; ++i) {
+      const double rate = -data->m_scaled(i, i);
+      if (!(rate > 0.0) || read[i]) continue;
+      sink_of[i] = static_cast<Eigen::Index>(data->sinks.size());
+      data->sinks.push_back(i);
+      data->sink_rate.push_back(rate);
+      for (Eigen::MatrixXd& m_p : data->m_p) {
+        if (m_p.size() != 0) m_p(i, i) = 0.0;
+      }
+    }
+    if (!data->sinks.empty()) {
+      std::erase_if(data->sparse_p, [&](const Entry& entry) { return sink_of[entry.col] >= 0; });
+    }
+    Eigen::VectorXd row_norm = Eigen::VectorXd::Zero(n_),
+                    row_norm_p = Eigen::VectorXd::Zero(n_ * p_);
+    for (const Entry& entry : data->sparse) {
+      const Eigen::Index sink = sink_of[entry.row];
+      if (sink < 0) {
+        data->core.push_back(entry);
+        row_norm[entry.row] += std::abs(entry.value);
+      } else if (entry.col != entry.row) {
+        data->sink_in.push_back({sink, entry.col, entry.value});
+      }
+    }
+    for (const Entry& entry : data->sparse_p) {
+      const Eigen::Index sink = sink_of[entry.row / p_];
+      if (sink < 0) {
+        data->core_p.push_back(entry);
+        row_norm_p[entry.row] += std::abs(entry.value);
+      } else {
+        data->sink_in_p.push_back({sink * p_ + entry.row % p_, entry.col, entry.value});
+      }
+    }
+    data->norm = row_norm.maxCoeff() + (p_ > 0 ? row_norm_p.maxCoeff() : 0.0);
+  }
+
+  // For each sink row r of `data` over a piece of length τ: e^{−a_r τ} into decay[r] and
+  // τ g_k(−a_r τ), k = 0 … terms, into weights[r (terms + 1) + k].
+  static void SinkWeights(const PhaseSet& data, double tau, int terms, std::vector<double>* decay,
+                          std::vector<double>* weights) {
+    const size_t sinks = data.sinks.size();
+    decay->resize(sinks);
+    weights->resize(sinks * (terms + 1));
+    for (size_t r = 0; r < sinks; ++r) {
+      const double z = -data.sink_rate[r] * tau;
+      (*decay)[r] = std::exp(z);
+      double* g = weights->data() + r * (terms + 1);
+      numerics::ExponentialMoments(z, terms, g);
+      for (int k = 0; k <= terms; ++k) g[k] *= tau;
+    }
+  }
+
   // exp(M̃ τ) and F̃_j(τ) (stacked), the blocks of exp([M̃ M̃_j; 0 M̃] τ), for every j at once:
-  // one Taylor series over σ = τ / 2^s with θ = ‖[M̃ M̃_j; 0 M̃]‖∞ σ <= 1/2, on the non-zeros of
-  // M̃ and M̃_j,
+  // one Taylor series over σ = τ / 2^s with θ = ‖[M̃ M̃_j; 0 M̃]‖∞ σ <= 1/2 (the other rows'), on
+  // the non-zeros of M̃ and M̃_j,
   //   A_k = (σ/k) M̃ A_{k−1},  B_{j,k} = (σ/k) (M̃ B_{j,k−1} + M̃_j A_{k−1}),  A_0 = I, B_{j,0} = 0,
   // E = Σ A_k, F_j = Σ B_{j,k} (the top right block of the k-th power is Σ_i M̃^i M̃_j M̃^(k−1−i)),
-  // then s squarings of the block matrix: F_j ← E F_j + F_j E, E ← E².
+  // the sink rows from the terms' other rows with the weights of SinkWeights, then s squarings of
+  // the block matrix: F_j ← E F_j + F_j E, E ← E².
   void Exponentials(const PhaseSet& data, double tau, Eigen::MatrixXd* e,
                     Eigen::MatrixXd* f) const {
     const double norm = data.norm * tau;
@@ -353,15 +442,34 @@ class SensitivityPass final : public HybridObserver {
         norm > 0.5 && std::isfinite(norm) ? static_cast<int>(std::ceil(std::log2(norm / 0.5))) : 0;
     const double sigma = std::ldexp(tau, -squarings);
     const double theta = data.norm * sigma;
-    std::vector<int> moved;                   // the parameters with M̃_j ≠ 0
-    std::vector<std::vector<Entry>> entries;  // the non-zeros of each such M̃_j
+    // Terms until the next one's bound θ^(k+1)/(k+1)! drops below 1/4 ulp.
+    int terms = 1;
+    for (double bound = theta * theta / 2; terms < kMaxTaylorTerms && bound > 0.25 * kEps;) {
+      ++terms;
+      bound *= theta / (terms + 1);
+    }
+    std::vector<double> decay, weights;
+    SinkWeights(data, sigma, terms, &decay, &weights);
+    const size_t sinks = data.sinks.size();
+    std::vector<int> moved;                        // the parameters with M̃_j ≠ 0
+    std::vector<std::vector<Entry>> entries;       // the non-zeros of each such M̃_j, other rows
+    std::vector<std::vector<Entry>> sink_entries;  // and in sink rows (row r)
+    std::vector<Eigen::Index> sink_of(n_, -1);
+    for (size_t r = 0; r < sinks; ++r) sink_of[data.sinks[r]] = static_cast<Eigen::Index>(r);
     for (int j = 0; j < p_; ++j) {
       if (data.m_p[j].size() == 0) continue;
       moved.push_back(j);
       entries.emplace_back();
+      sink_entries.emplace_back();
       for (int c = 0; c < n_; ++c) {
         for (int i = 0; i < n_; ++i) {
-          if (data.m_p[j](i, c) != 0.0) entries.back().push_back({i, c, data.m_p[j](i, c)});
+          const double value = data.m_p[j](i, c);
+          if (value == 0.0) continue;
+          if (sink_of[i] < 0) {
+            entries.back().push_back({i, c, value});
+          } else {
+            sink_entries.back().push_back({sink_of[i], c, value});
+          }
         }
       }
     }
@@ -371,12 +479,27 @@ class SensitivityPass final : public HybridObserver {
     RowMatrix sum_a = a;
     std::vector<RowMatrix> b(count, RowMatrix::Zero(n_, n_)), sum_b = b;
     RowMatrix next_b(n_, n_);
-    double bound = 1.0;
-    for (int k = 1; k <= kMaxTaylorTerms; ++k) {
-      const double factor = sigma / k;
+    const auto sink_count = static_cast<Eigen::Index>(sinks);
+    RowMatrix sink_a = RowMatrix::Zero(sink_count, n_);
+    std::vector<RowMatrix> sink_b(count, RowMatrix::Zero(sink_count, n_));
+    for (int k = 0;; ++k) {
+      // The sink rows take term k of the others.
+      for (const Entry& entry : data.sink_in) {
+        const double w = weights[entry.row * (terms + 1) + k] * entry.value;
+        sink_a.row(entry.row) += w * a.row(entry.col);
+        for (size_t m = 0; m < count; ++m) sink_b[m].row(entry.row) += w * b[m].row(entry.col);
+      }
+      for (size_t m = 0; m < count; ++m) {
+        for (const Entry& entry : sink_entries[m]) {
+          sink_b[m].row(entry.row) +=
+              (weights[entry.row * (terms + 1) + k] * entry.value) * a.row(entry.col);
+        }
+      }
+      if (k == terms) break;
+      const double factor = sigma / (k + 1);
       for (size_t m = 0; m < count; ++m) {
         next_b.setZero();
-        for (const Entry& entry : data.sparse) {
+        for (const Entry& entry : data.core) {
           next_b.row(entry.row) += (factor * entry.value) * b[m].row(entry.col);
         }
         for (const Entry& entry : entries[m]) {
@@ -386,13 +509,19 @@ class SensitivityPass final : public HybridObserver {
         sum_b[m] += b[m];
       }
       next_a.setZero();
-      for (const Entry& entry : data.sparse) {
+      for (const Entry& entry : data.core) {
         next_a.row(entry.row) += (factor * entry.value) * a.row(entry.col);
       }
       a.swap(next_a);
       sum_a += a;
-      bound *= theta / k;
-      if (bound * theta / (k + 1) <= 0.25 * kEps) break;
+    }
+    for (size_t r = 0; r < sinks; ++r) {
+      const Eigen::Index row = data.sinks[r];
+      sum_a.row(row) = sink_a.row(static_cast<Eigen::Index>(r));
+      sum_a(row, row) = decay[r];
+      for (size_t m = 0; m < count; ++m) {
+        sum_b[m].row(row) = sink_b[m].row(static_cast<Eigen::Index>(r));
+      }
     }
     for (int q = 0; q < squarings; ++q) {
       for (size_t m = 0; m < count; ++m) {
@@ -470,8 +599,9 @@ class SensitivityPass final : public HybridObserver {
       Apply(e, f);
       return;
     }
-    // The Taylor series of [ỹ; S̃]' = [M̃ ỹ; M̃ S̃ + M̃_j ỹ] in pieces with θ = ‖·‖∞ dt <= 1, on
-    // the non-zeros of M̃ and M̃_j, to the term where θ^(K+1)/(K+1)! drops below 1/4 ulp.
+    // The Taylor series of [ỹ; S̃]' = [M̃ ỹ; M̃ S̃ + M̃_j ỹ] in pieces with θ = ‖·‖∞ dt <= 1 (the
+    // rows but the sinks), on the non-zeros of M̃ and M̃_j, to the term where θ^(K+1)/(K+1)!
+    // drops below 1/4 ulp; the sink rows take every term of the others (SinkWeights).
     const int count = std::max(1, static_cast<int>(pieces));
     const double dt = tau / count;
     const double theta = data.norm * dt;
@@ -479,29 +609,49 @@ class SensitivityPass final : public HybridObserver {
     for (double bound = theta; terms < kMaxTaylorTerms && bound > 0.25 * kEps; ++terms) {
       bound *= theta / (terms + 1);
     }
+    SinkWeights(data, dt, terms, &decay_, &weights_);
+    const auto sinks = static_cast<Eigen::Index>(data.sinks.size());
     for (int piece = 0; piece < count; ++piece) {
       y_term_ = y_;
       s_term_ = s_;
-      for (int k = 1; k <= terms; ++k) {
-        const double factor = dt / k;
+      sink_y_.setZero(sinks);
+      sink_s_.setZero(sinks, p_);
+      for (int k = 0;; ++k) {
+        for (const Entry& entry : data.sink_in) {
+          const double w = weights_[entry.row * (terms + 1) + k] * entry.value;
+          sink_y_[entry.row] += w * y_term_[entry.col];
+          sink_s_.row(entry.row) += w * s_term_.row(entry.col);
+        }
+        double* sink_next = sink_s_.data();
+        for (const Entry& entry : data.sink_in_p) {
+          sink_next[entry.row] +=
+              weights_[(entry.row / p_) * (terms + 1) + k] * entry.value * y_term_[entry.col];
+        }
+        if (k == terms) break;
+        const double factor = dt / (k + 1);
         s_next_.setZero();
         y_next_.setZero();
         double* next = s_next_.data();
         const double* term = s_term_.data();
-        for (const Entry& entry : data.sparse) {
+        for (const Entry& entry : data.core) {
           const double value = factor * entry.value;
           double* to = next + static_cast<std::ptrdiff_t>(entry.row) * p_;
           const double* from = term + static_cast<std::ptrdiff_t>(entry.col) * p_;
           for (int j = 0; j < p_; ++j) to[j] += value * from[j];
           y_next_[entry.row] += value * y_term_[entry.col];
         }
-        for (const Entry& entry : data.sparse_p) {
+        for (const Entry& entry : data.core_p) {
           next[entry.row] += factor * entry.value * y_term_[entry.col];
         }
         s_term_.swap(s_next_);
         y_term_.swap(y_next_);
         y_ += y_term_;
         s_ += s_term_;
+      }
+      for (Eigen::Index r = 0; r < sinks; ++r) {
+        const Eigen::Index row = data.sinks[r];
+        y_[row] = decay_[r] * y_[row] + sink_y_[r];
+        s_.row(row) = decay_[r] * s_.row(row) + sink_s_.row(r);
       }
     }
   }
@@ -522,8 +672,9 @@ class SensitivityPass final : public HybridObserver {
   std::vector<int> links_;        // the scene links whose torques' sensitivities are recorded
   Eigen::VectorXd link_inverse_;  // 1 / each such link's shaft factor
   // Scratch of Propagate and Recorded.
-  Eigen::VectorXd y_, y_term_, y_next_, stacked_scratch_;
-  RowMatrix s_term_, s_next_;
+  Eigen::VectorXd y_, y_term_, y_next_, stacked_scratch_, sink_y_;
+  RowMatrix s_term_, s_next_, sink_s_;
+  std::vector<double> decay_, weights_;
   Eigen::MatrixXd torque_scratch_;
   std::vector<Eigen::MatrixXd> out_;
   std::string unavailable_;
