@@ -11,7 +11,11 @@
 //    one more for the surfaces and link torques, [R; T] z.
 //  - Every other step (to an event, a breakpoint, an irregular output time, or in a phase set seen
 //    only briefly) sums the Taylor series of v, v(t + s dt) = Σ u_k s^k, u_k = (M dt)^k v / k!,
-//    over pieces dt with ‖M dt‖∞ <= 1; z follows by integrating it term by term.
+//    over pieces dt with ‖M dt‖∞ <= 1; z follows by integrating it term by term. A recorder
+//    low-pass state y' = a (T z − y), read by no other state and no surface, is left out of the
+//    series and of ‖M‖: it takes the other components' polynomial through its decay exactly
+//    (numerics/exponential_moments.h), so that a filter faster than the line does not cut every
+//    such step into more pieces.
 // Events: a watched surface g = r·z changes side within a step. Each step first bounds every
 // watched surface from its values at the two ends: the chord is off g by at most max|g''| τ²/8,
 // |g''| = |r M v| <= |r| |M| 1 · e^{‖M‖∞ τ} ‖v(t)‖∞. Those it does not clear are bounded from
@@ -46,6 +50,7 @@
 #include "millkit/driveline/simulation.h"
 #include "millkit/io/number_format.h"
 #include "numerics/exp_phi.h"
+#include "numerics/exponential_moments.h"
 #include "numerics/median_interval.h"
 #include "numerics/small_matvec.h"
 
@@ -238,6 +243,14 @@ struct PhaseData {
   PaddedMatrix m_padded;  // m = D⁻¹ M D, for v = m y
   PaddedMatrix m_active;  // m on the moving components (see active_)
   double norm_inf = 0.0;  // ‖m‖∞
+  // The recorder low-pass states apart (their columns of m zero off the diagonal): m_active with
+  // their rows zeroed, each one's rate a = −m(y, y) and row off the diagonal (padded), and
+  // ‖m‖∞ over the other rows, which sizes the Taylor pieces. Else series_norm = ‖m‖∞.
+  bool lowpass_apart = false;
+  PaddedMatrix m_series;
+  std::vector<double> lowpass_rate;
+  std::vector<double> lowpass_rows;  // per low-pass state, stride_ entries
+  double series_norm = 0.0;
   std::vector<Model::WatchedSurface> watched;
   PaddedMatrix rows;      // watched surfaces over y, signed: R = side · G D (>= 0 on the side the
                           // phases describe), for the surfaces' slopes R v
@@ -278,10 +291,27 @@ struct Series {
   std::vector<int> terms;       // per piece
   std::vector<double> u;        // the u vectors
   std::vector<double> z_start;  // per piece
+  // Per piece and recorder low-pass state taken apart: the coefficients c_0 … c_K+1 of its
+  // input over the piece in s (ExactIntegrator::LowpassAt).
+  int lowpass = 0;
+  const PhaseData* data = nullptr;  // the phase set the series was summed in
+  std::vector<double> lowpass_input;
+  double* LowpassInput(int p, int r) {
+    return lowpass_input.data() + (static_cast<size_t>(p) * lowpass + r) * (kMaxTaylorTerms + 1);
+  }
+  const double* LowpassInput(int p, int r) const {
+    return lowpass_input.data() + (static_cast<size_t>(p) * lowpass + r) * (kMaxTaylorTerms + 1);
+  }
   const double* U(int p, int k) const {
     return u.data() + static_cast<size_t>(first[p] + k) * stride;
   }
 };
+
+inline double Dot(const double* a, const double* b, int n) {
+  double sum = 0.0;
+  for (int i = 0; i < n; ++i) sum += a[i] * b[i];
+  return sum;
+}
 
 // A polynomial in s on [0, 1], coefficients c_0 … c_K.
 struct Polynomial {
@@ -446,7 +476,12 @@ class ExactIntegrator final : public ModeIntegrator {
         stride_(PaddedMatrix::Padded(model.augmented_size())),
         active_(model.augmented_size() - model.forcing_size()),
         active_stride_(PaddedMatrix::Padded(active_)),
-        words_((model.augmented_size() + 63) / 64) {}
+        words_((model.augmented_size() + 63) / 64) {
+    for (int l = 0; l < static_cast<int>(model.reduced_scene().links.size()); ++l) {
+      if (model.FilterIndexOf(l) >= 0) lowpass_.push_back(model.FilterIndexOf(l));
+    }
+    lowpass_weights_.resize(kMaxTaylorTerms + 2);
+  }
 
   double time_scale() const override { return h_; }
   std::string Start(const Eigen::VectorXd& z0, const Phases& phases,
@@ -478,6 +513,9 @@ class ExactIntegrator final : public ModeIntegrator {
                   double* v1);
   // z(s), v(s) on piece p of series_.
   void EvaluateSeries(int p, double s, double* z, double* v) const;
+  // The recorder low-pass states taken apart, z and v at s on piece p of series_ (the other
+  // components of z already there).
+  void LowpassAt(const PhaseData& data, int p, double s, double* z, double* v) const;
   // The earliest crossing of a candidate surface on series_: piece, s and watched index.
   bool FindEvent(const PhaseData& data, const std::vector<int>& candidates,
                  const std::vector<double>& tolerance, double resolution_s, int* piece, double* s,
@@ -539,6 +577,8 @@ class ExactIntegrator final : public ModeIntegrator {
   // torques]), their slopes (dg0_, dg1_) when a step needs them, and ‖v‖∞.
   std::vector<double> y_, v_, y1_, v1_, g0_, dg0_, end_, dg1_, out_;
   double v_norm_ = 0.0;
+  std::vector<int> lowpass_;                     // the recorder low-pass states
+  mutable std::vector<double> lowpass_weights_;  // scratch of LowpassAt
   Eigen::VectorXd unscaled_;
   std::vector<std::uint64_t> moving_scratch_;
   std::vector<int> candidates_;
@@ -587,6 +627,27 @@ MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
     data.norm_inf = std::max(data.norm_inf, row);
   }
   data.growth = std::exp(std::min(data.norm_inf * h_, 700.0));
+  data.lowpass_apart = !lowpass_.empty();
+  for (const int y : lowpass_) {
+    for (int i = 0; i < n_; ++i)
+      data.lowpass_apart = data.lowpass_apart && (i == y || m(i, y) == 0.0);
+  }
+  data.series_norm = data.norm_inf;
+  if (data.lowpass_apart) {
+    Eigen::MatrixXd core = m.topLeftCorner(active_, active_);
+    data.lowpass_rows.assign(lowpass_.size() * stride_, 0.0);
+    for (size_t r = 0; r < lowpass_.size(); ++r) {
+      const int y = lowpass_[r];
+      data.lowpass_rate.push_back(-m(y, y));
+      for (int j = 0; j < n_; ++j) {
+        if (j != y) data.lowpass_rows[r * stride_ + j] = m(y, j);
+      }
+      core.row(y).setZero();
+    }
+    data.m_series.Assign(core);
+    data.series_norm = core.cwiseAbs().rowwise().sum().maxCoeff();
+    // The rows beyond the active block (the input slopes') are zero.
+  }
   data.watched = model_.Watched(phases);
   const int count = static_cast<int>(data.watched.size());
   const Eigen::MatrixXd torque = model_.LinkTorqueRows(phases, system);
@@ -847,7 +908,12 @@ MILLKIT_HOT void ExactIntegrator::ExpandStep(const PhaseData& data, const double
                                              const double* v, double tau, double* z1, double* v1) {
   Series& series = series_;
   series.stride = stride_;
-  series.pieces = std::max(1, static_cast<int>(std::ceil(data.norm_inf * tau)));
+  series.pieces = std::max(1, static_cast<int>(std::ceil(data.series_norm * tau)));
+  const PaddedMatrix& m_series = data.lowpass_apart ? data.m_series : data.m_active;
+  const size_t lowpass = data.lowpass_apart ? lowpass_.size() : 0;
+  series.lowpass = static_cast<int>(lowpass);
+  series.data = &data;
+  series.lowpass_input.resize(static_cast<size_t>(series.pieces) * lowpass * (kMaxTaylorTerms + 1));
   series.dt = tau / series.pieces;
   series.first.resize(series.pieces);
   series.terms.resize(series.pieces);
@@ -871,7 +937,7 @@ MILLKIT_HOT void ExactIntegrator::ExpandStep(const PhaseData& data, const double
     if (start != 0.0) {
       for (int k = 1; k < kMaxTaylorTerms; ++k) {
         double* u = vector(used + k);
-        data.m_active.Apply(u - stride_, u);
+        m_series.Apply(u - stride_, u);
         const double factor = series.dt / k;
         double size = 0.0;
         for (int i = 0; i < active_stride_; ++i) {
@@ -891,7 +957,45 @@ MILLKIT_HOT void ExactIntegrator::ExpandStep(const PhaseData& data, const double
       const double factor = series.dt / (k + 1);
       for (int i = 0; i < active_stride_; ++i) z1[i] += factor * u[i];
     }
+    // The low-pass states: their input T z over the piece is Σ_j c_j s^j, c_0 = row · z_p,
+    // c_{k+1} = dt row · u_k / (k + 1), taken through the decay (LowpassAt).
+    for (size_t r = 0; r < lowpass; ++r) {
+      const double* row = data.lowpass_rows.data() + r * stride_;
+      double* c = series.LowpassInput(p, static_cast<int>(r));
+      const double* z_p = series.z_start.data() + static_cast<size_t>(p) * stride_;
+      c[0] = Dot(row, z_p, active_stride_);
+      const double* term = series.U(p, 0);
+      for (int k = 0; k < terms; ++k, term += stride_) {
+        c[k + 1] = series.dt / (k + 1) * Dot(row, term, active_stride_);
+      }
+    }
+    if (lowpass > 0) LowpassAt(data, p, 1.0, z1, v1);
     used += terms;
+  }
+}
+
+void ExactIntegrator::LowpassAt(const PhaseData& data, int p, double s, double* z,
+                                double* v) const {
+  const Series& series = series_;
+  const int terms = series.terms[p];
+  const double tau = s * series.dt;
+  double* g = lowpass_weights_.data();
+  for (int r = 0; r < series.lowpass; ++r) {
+    const int y = lowpass_[r];
+    const double rate = data.lowpass_rate[r];
+    numerics::ExponentialMoments(-rate * tau, terms, g);
+    const double* c = series.LowpassInput(p, r);
+    // Σ_j g_j c_j s^j: the input in the variable σ / (s dt).
+    double sum = 0.0, power = 1.0;
+    for (int j = 0; j <= terms; ++j, power *= s) sum += g[j] * c[j] * power;
+    const double start = series.z_start[static_cast<size_t>(p) * stride_ + y];
+    z[y] = std::exp(-rate * tau) * start + tau * sum;
+  }
+  // y' = row · z − a y, with every low-pass state of z in place (a row reads none of them).
+  for (int r = 0; r < series.lowpass; ++r) {
+    const int y = lowpass_[r];
+    v[y] = Dot(data.lowpass_rows.data() + static_cast<size_t>(r) * stride_, z, active_stride_) -
+           data.lowpass_rate[r] * z[y];
   }
 }
 
@@ -912,6 +1016,7 @@ void ExactIntegrator::EvaluateSeries(int p, double s, double* z, double* v) cons
   }
   const double factor = series.dt * s;
   for (int i = 0; i < stride_; ++i) z[i] = z0[i] + factor * z[i];
+  if (series.lowpass > 0) LowpassAt(*series.data, p, s, z, v);
 }
 
 MILLKIT_HOT bool ExactIntegrator::FindEvent(const PhaseData& data,
