@@ -695,9 +695,11 @@ MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
   }
   data.row_norm.resize(count);
   for (int w = 0; w < count; ++w) data.row_norm[w] = observe.row(w).cwiseAbs().sum();
-  data.bytes = sizeof(double) * (static_cast<size_t>(n_) * n_ * 2 +
-                                 static_cast<size_t>(count + torque.rows()) * n_ * 2) +
-               sizeof(PhaseData);
+  data.bytes =
+      sizeof(double) *
+          (static_cast<size_t>(n_) * n_ * 2 + static_cast<size_t>(count + torque.rows()) * n_ * 2 +
+           (data.lowpass_apart ? static_cast<size_t>(n_) * n_ : 0) + data.lowpass_rows.size()) +
+      sizeof(PhaseData);
   cache_bytes_ += data.bytes;
   return &cache_.emplace(phases, std::move(data)).first->second;
 }
