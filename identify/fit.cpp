@@ -126,28 +126,23 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
     driveline::SimulationOptions options;
     options.estimate_error = false;
     // A modelled recorder filter runs inside the model (Link::recorder_lowpass_Hz: exact at the
-    // record's times) when every channel of a link has the same one, at most half the record's
-    // rate (an anti-alias filter's place; a faster one would set the pieces of every Taylor
-    // series in the run: 50 kHz on the bundled 2 kHz record took 8 times the time). Otherwise
-    // the model is sampled from the record's start and each channel's filter applied as linear
-    // between the points: kFilterOversample points per record step, kFastFilterOversample when
-    // every filter is above half the rate (its output follows the torque within a step).
-    bool shared = true, slow = false, fast = false;
-    const double record_step = numerics::MedianInterval(record.time_s, 0.0);
+    // record's times, at any cutoff) when every channel of a link has the same one. Otherwise
+    // the model is sampled kFilterOversample times per record step from the record's start and
+    // each channel's filter applied as linear between the points.
+    bool shared = true;
     for (const auto& a : channels) {
-      if (a.lowpass_Hz > 0.0) (a.lowpass_Hz * record_step > 0.5 + 1e-9 ? fast : slow) = true;
       for (const auto& b : channels) {
         if (a.link_index == b.link_index && a.lowpass_Hz != b.lowpass_Hz) shared = false;
       }
     }
-    const bool filtered = !shared || fast;
+    const bool filtered = !shared;
     if (!filtered) {
       for (const auto& channel : channels) {
         run.links[channel.link_index].recorder_lowpass_Hz = channel.lowpass_Hz;
       }
     }
     const int first = filtered ? 0 : begin;
-    const int stride = !filtered ? 1 : slow ? kFilterOversample : kFastFilterOversample;
+    const int stride = filtered ? kFilterOversample : 1;
     std::vector<double> times;
     times.reserve(static_cast<size_t>(end - first - 1) * stride + 1);
     for (int k = first; k < end; ++k) {

@@ -68,6 +68,11 @@ constexpr double kMaxDriveBandwidth_Hz = 20.0;
 constexpr double kUnreachedDriveLimit_Nm = 1e12;
 constexpr double kMinLowpassFraction = 0.1;  // of the record's rate
 constexpr double kMaxLowpassFraction = 0.4;
+constexpr double kMinFastLowpassFraction = 0.5;  // above half the rate: not an anti-alias filter
+constexpr double kMaxFastLowpassFraction = 5.0;
+// The fast filter's record is filtered on 64 points a step (linear between them, as a recorder's
+// own filter is continuous): at 8 its interpolation error near an impact is 1e-3 of the peak.
+constexpr int kFastLowpassOversample = 64;
 constexpr double kWidePriorDampingFactor = 3.0;
 constexpr double kWidePriorGapFactor = 2.0;
 constexpr double kPriorStiffnessFactor = 1.3;
@@ -426,12 +431,14 @@ void UseContactLaw(driveline::ContactLaw law, RandomLineCase* c) {
   c->description += std::string("; contact law ") + driveline::ContactLawName(law);
 }
 
-// The recorder's first-order anti-alias filter, its cutoff a log-uniform fraction of the rate,
-// in the record and in the fit's channels (the engineer knows the recorder).
-void AddLowpass(Draw& draw, RandomLineCase* c) {
-  const double cutoff_Hz =
-      c->truth.sample_rate_Hz * draw.LogUniform(kMinLowpassFraction, kMaxLowpassFraction);
+// The recorder's first-order filter, its cutoff a log-uniform fraction of the rate, in the record
+// and in the fit's channels (the engineer knows the recorder).
+void AddLowpass(Draw& draw, bool fast, RandomLineCase* c) {
+  const double cutoff_Hz = c->truth.sample_rate_Hz *
+                           (fast ? draw.LogUniform(kMinFastLowpassFraction, kMaxFastLowpassFraction)
+                                 : draw.LogUniform(kMinLowpassFraction, kMaxLowpassFraction));
   c->record_spec.defects.lowpass_Hz = cutoff_Hz;
+  if (fast) c->record_spec.defects.oversample = kFastLowpassOversample;
   c->record = GenerateRecord(c->truth, c->record_spec);
   for (auto& channel : c->config.channels) channel.lowpass_Hz = cutoff_Hz;
   c->description += Format("; recorder low-pass at %.0f Hz", cutoff_Hz);
@@ -531,7 +538,10 @@ RandomLineCase MakeRandomLineCase(unsigned long seed,
         StepLoads(&c);
         break;
       case RandomLineVariant::kLowpass:
-        AddLowpass(draw, &c);
+        AddLowpass(draw, false, &c);
+        break;
+      case RandomLineVariant::kFastLowpass:
+        AddLowpass(draw, true, &c);
         break;
     }
   }
@@ -548,7 +558,8 @@ bool ParseRandomLineVariant(const std::string& name, RandomLineVariant* variant)
       {"no-pull", RandomLineVariant::kNoPull},
       {"linear", RandomLineVariant::kLinear},
       {"step-load", RandomLineVariant::kStepLoad},
-      {"lowpass", RandomLineVariant::kLowpass}};
+      {"lowpass", RandomLineVariant::kLowpass},
+      {"fast-lowpass", RandomLineVariant::kFastLowpass}};
   for (const auto& [text, value] : kNames) {
     if (name == text) {
       *variant = value;

@@ -40,6 +40,8 @@
 //    alike: the right-hand side jumps at the fitted bite time; the record made again.
 //  - kLowpass: the recorder's first-order anti-alias filter, cutoff log-uniform in 0.1–0.4 of
 //    the record's rate, in the record (made again) and in every channel of the fit's config.
+//  - kFastLowpass: the same with the cutoff log-uniform in 0.5–5 of the rate (a recorder filter
+//    above half its rate; the record filtered on a grid 64 times finer).
 // Variants combine ("no-pull+lowpass"): each in turn, the k-th with a stream of its own (the
 // first with the stream it takes alone).
 #pragma once
@@ -65,7 +67,8 @@ enum class RandomLineVariant {
   kNoPull,
   kLinear,
   kStepLoad,
-  kLowpass
+  kLowpass,
+  kFastLowpass
 };
 
 struct RandomLineCase {
@@ -84,13 +87,13 @@ struct RandomLineCase {
 // generator. Throws std::runtime_error only if 20 draws in a row fail (never seen in 500 seeds).
 RandomLineCase MakeRandomLineCase(unsigned long seed);
 // The seed's base case, changed as the variant says (or as each of the variants says, in turn);
-// a variant that makes the record again (drive, no-pull, linear, step-load, lowpass) throws
+// a variant that makes the record again (all but wide-prior and stiffness) throws
 // SolverFailure when it cannot be simulated (never seen in 400 seeds of each).
 RandomLineCase MakeRandomLineCase(unsigned long seed, RandomLineVariant variant);
 RandomLineCase MakeRandomLineCase(unsigned long seed,
                                   const std::vector<RandomLineVariant>& variants);
-// "base", "drive", "wide-prior", "stiffness", "no-pull", "linear", "step-load", "lowpass"; false
-// for any other name.
+// "base", "drive", "wide-prior", "stiffness", "no-pull", "linear", "step-load", "lowpass",
+// "fast-lowpass"; false for any other name.
 bool ParseRandomLineVariant(const std::string& name, RandomLineVariant* variant);
 // Names joined by '+' ("linear+lowpass"); false if any is not a variant.
 bool ParseRandomLineVariants(const std::string& names, std::vector<RandomLineVariant>* variants);

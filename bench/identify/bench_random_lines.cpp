@@ -25,15 +25,17 @@
 // and from the truth, and scores its answers in MillKit's standard errors: wall time,
 // simulations and worst |z| side by side with MillKit's fit.
 //
-// --variant drive|wide-prior|stiffness|no-pull|linear|step-load|lowpass fits lines the base draw
-// never makes (a speed-PI drive, a prior three times off, a fitted stiffness, the no_pull or the
-// linear contact law, loads applied as steps, a recorder anti-alias filter;
+// --variant drive|wide-prior|stiffness|no-pull|linear|step-load|lowpass|fast-lowpass fits lines
+// the base draw never makes (a speed-PI drive, a prior three times off, a fitted stiffness, the
+// no_pull or the linear contact law, loads applied as steps, a recorder anti-alias filter, a
+// recorder filter above half the rate;
 // identify/random_line.h); variants combine with '+' (no-pull+lowpass). --scipy goes with the base
 // lines only: bench/identify/scipy_fit.py models no drive.
 //
 // Usage: bench_random_lines [--cases N (200)] [--first-seed S (1)] [--threads N] [--search-seed K]
 //                           [--variant V[+V...]]  (V: base, drive, wide-prior, stiffness,
-//                                                  no-pull, linear, step-load, lowpass)
+//                                                  no-pull, linear, step-load, lowpass,
+//                                                  fast-lowpass)
 //                           [--derivatives sensitivity|forward|central] [--scipy N] [--verbose]
 // Exits 1 when a case throws (printed, counted as crashed), else 0.
 #include <glog/logging.h>
@@ -330,12 +332,12 @@ int main(int argc, char** argv) {
                ParseDerivatives(argv[i + 1], &options.derivatives)) {
       ++i;
     } else {
-      std::fprintf(
-          stderr,
-          "usage: %s [--cases N] [--first-seed S] [--threads N] [--search-seed K] "
-          "[--variant base|drive|wide-prior|stiffness|no-pull|linear|step-load|lowpass][+...] "
-          "[--derivatives sensitivity|forward|central] [--scipy N] [--verbose]\n",
-          argv[0]);
+      std::fprintf(stderr,
+                   "usage: %s [--cases N] [--first-seed S] [--threads N] [--search-seed K] "
+                   "[--variant base|drive|wide-prior|stiffness|no-pull|linear|step-load|lowpass|"
+                   "fast-lowpass][+...] "
+                   "[--derivatives sensitivity|forward|central] [--scipy N] [--verbose]\n",
+                   argv[0]);
       return 2;
     }
   }

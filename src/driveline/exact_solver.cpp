@@ -243,9 +243,11 @@ struct PhaseData {
   PaddedMatrix m_padded;  // m = D⁻¹ M D, for v = m y
   PaddedMatrix m_active;  // m on the moving components (see active_)
   double norm_inf = 0.0;  // ‖m‖∞
-  // The recorder low-pass states apart (their columns of m zero off the diagonal): m_active with
-  // their rows zeroed, each one's rate a = −m(y, y) and row off the diagonal (padded), and
-  // ‖m‖∞ over the other rows, which sizes the Taylor pieces. Else series_norm = ‖m‖∞.
+  // The recorder low-pass states apart (their columns of m and of the surfaces zero off the
+  // diagonal): m_active with their rows zeroed, each one's rate a = −m(y, y) and row off the
+  // diagonal (padded), and ‖m‖∞ over the other rows, which sizes the Taylor pieces, tells a stiff
+  // phase set and bounds the surfaces' motion (the other rows move on their own, and the surfaces
+  // read only them). Else series_norm = ‖m‖∞.
   bool lowpass_apart = false;
   PaddedMatrix m_series;
   std::vector<double> lowpass_rate;
@@ -266,8 +268,8 @@ struct PhaseData {
   // The full step over h in increment form, built after kStepsBeforeCaching full steps.
   long full_steps = 0;
   bool has_step = false;
-  PaddedMatrix step;    // [Φ; 0; S; 0] over the active part of v (zero rows pad to 4)
-  double growth = 1.0;  // e^{‖m‖∞ h}: bounds ‖v‖ over a step by growth · ‖v(t)‖
+  PaddedMatrix step;  // [Φ; 0; S; 0] over the active part of v (zero rows pad to 4)
+  double growth = 1.0;  // e^{series_norm h}: bounds ‖v‖ over a step by growth · ‖v(t)‖ (BoundNorm)
   double defect = 0.0;  // roundoff of one cached step, relative to the state scale
   // Stiff phase sets (StiffAdvance), built on first need: per level j = 0 … ladder.size() − 1,
   // the step [Φ; 0; S; 0] over σ_j = h / 2^j, sup_{s <= σ_j} ‖exp(m s)‖∞ and the roundoff of Φ
@@ -481,6 +483,8 @@ class ExactIntegrator final : public ModeIntegrator {
       if (model.FilterIndexOf(l) >= 0) lowpass_.push_back(model.FilterIndexOf(l));
     }
     lowpass_weights_.resize(kMaxTaylorTerms + 2);
+    core_mask_.assign(stride_, 1.0);
+    for (const int y : lowpass_) core_mask_[y] = 0.0;
   }
 
   double time_scale() const override { return h_; }
@@ -521,6 +525,10 @@ class ExactIntegrator final : public ModeIntegrator {
                  const std::vector<double>& tolerance, double resolution_s, int* piece, double* s,
                  int* crossed);
   void Record(OutputRecorder* recorder, int k, const double* y, const double* torque);
+  // exp(m h) and Φ(h) over the active states of a phase set whose low-pass states are apart,
+  // those taken exactly through their decay (with `extra_doublings`: another rounding path).
+  void SplitStep(const PhaseData& data, int extra_doublings, Eigen::MatrixXd* s,
+                 Eigen::MatrixXd* phi);
   // Builds the propagator ladder of a stiff phase set.
   void BuildLadder(PhaseData* data);
   // Advances (y, v) over τ in a stiff phase set by substeps on the ladder: each substep is
@@ -532,6 +540,17 @@ class ExactIntegrator final : public ModeIntegrator {
   bool StiffAdvance(PhaseData* data, double t, double tau, const double* y, const double* v,
                     const double* g0, double* y1, double* v1, double* end, double* tau_event,
                     int* crossed);
+  // ‖v‖∞ over the components the series and the surfaces' bounds follow: with the low-pass
+  // states apart, the others only; NaN when one is not finite.
+  double BoundNorm(const PhaseData& data, const double* v) const {
+    if (!data.lowpass_apart) return numerics::MaxAbsPadded(v, active_stride_);
+    double norm = 0.0;
+    for (int i = 0; i < active_stride_; ++i) {
+      const double size = std::abs(v[i]) * core_mask_[i];
+      norm = size > norm || size != size ? size : norm;  // NOLINT(misc-redundant-expression)
+    }
+    return norm;
+  }
   // Whether surface w cannot move: no component that reaches it moves (v = 0 there).
   bool StaticSurface(PhaseData* data, int w, const double* v);
   // Per watched surface: the crossing tolerance at states y and y1, kCrossingTolerance times
@@ -577,8 +596,12 @@ class ExactIntegrator final : public ModeIntegrator {
   // torques]), their slopes (dg0_, dg1_) when a step needs them, and ‖v‖∞.
   std::vector<double> y_, v_, y1_, v1_, g0_, dg0_, end_, dg1_, out_;
   double v_norm_ = 0.0;
-  std::vector<int> lowpass_;                     // the recorder low-pass states
-  mutable std::vector<double> lowpass_weights_;  // scratch of LowpassAt
+  std::vector<int> lowpass_;  // the recorder low-pass states
+  // LowpassAt's weights g_0 … g_terms at z = weights_z_, and e^z.
+  mutable std::vector<double> lowpass_weights_;
+  mutable double weights_z_ = 1.0, weights_decay_ = 0.0;
+  mutable int weights_terms_ = -1;
+  std::vector<double> core_mask_;  // 0 at the low-pass states, else 1 (BoundNorm)
   Eigen::VectorXd unscaled_;
   std::vector<std::uint64_t> moving_scratch_;
   std::vector<int> candidates_;
@@ -592,6 +615,9 @@ class ExactIntegrator final : public ModeIntegrator {
   std::vector<int> stack_scratch_;
   // Work space of BuildStep() and StiffAdvance().
   Eigen::MatrixXd build_m_, build_s_, build_phi_, build_step_, build_product_;
+  // Work space of SplitStep().
+  Eigen::MatrixXd split_c_, split_u_, split_next_, split_s_rows_, split_phi_rows_, split_product_;
+  std::vector<double> split_weights_;
   std::vector<double> stiff_y_, stiff_v_, stiff_g_, stiff_a_, stiff_out_;
   std::vector<int> stiff_candidates_;
   std::vector<double> size_scratch_, terms_scratch_;
@@ -626,11 +652,11 @@ MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
     for (int j = 0; j < n_; ++j) row += std::abs(m(i, j));
     data.norm_inf = std::max(data.norm_inf, row);
   }
-  data.growth = std::exp(std::min(data.norm_inf * h_, 700.0));
   data.lowpass_apart = !lowpass_.empty();
   for (const int y : lowpass_) {
     for (int i = 0; i < n_; ++i)
       data.lowpass_apart = data.lowpass_apart && (i == y || m(i, y) == 0.0);
+    data.lowpass_apart = data.lowpass_apart && (model_.surfaces().col(y).array() == 0.0).all();
   }
   data.series_norm = data.norm_inf;
   if (data.lowpass_apart) {
@@ -648,6 +674,7 @@ MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
     data.series_norm = core.cwiseAbs().rowwise().sum().maxCoeff();
     // The rows beyond the active block (the input slopes') are zero.
   }
+  data.growth = std::exp(std::min(data.series_norm * h_, 700.0));
   data.watched = model_.Watched(phases);
   const int count = static_cast<int>(data.watched.size());
   const Eigen::MatrixXd torque = model_.LinkTorqueRows(phases, system);
@@ -710,7 +737,17 @@ void ExactIntegrator::BuildStep(PhaseData* data) {
   const int a = active_, as = active_stride_;
   Eigen::MatrixXd &m = build_m_, &s = build_s_, &phi = build_phi_;
   data->m_active.CopyTo(&m);
-  numerics::ExpAndPhi1(m, h_, &s, &phi);
+  // A phase set stiff only through a fast recorder low-pass (‖m‖∞ h > kMaxTaylorPieces, the rest
+  // not; StiffAdvance takes the others): the low-pass rows apart (SplitStep). Through
+  // ExpAndPhi1's doublings of the whole m, the runs' roundoff on random lines filtered at 1–10
+  // times the sampling rate went above what central differences tell (sensitivity_test.cpp, a
+  // fast recorder low-pass).
+  const bool split = data->lowpass_apart && data->norm_inf * h_ > kMaxTaylorPieces;
+  if (split) {
+    SplitStep(*data, 0, &s, &phi);
+  } else {
+    numerics::ExpAndPhi1(m, h_, &s, &phi);
+  }
   Eigen::MatrixXd& step = build_step_;
   step.setZero(Eigen::Index{2} * as, a);
   step.topRows(a) = phi;
@@ -723,9 +760,76 @@ void ExactIntegrator::BuildStep(PhaseData* data) {
   // estimates a step's roundoff, z's through Φ v (‖v‖ <= ‖m‖∞ ‖z‖), v's through S and one more
   // step of Φ ≈ h.
   Eigen::MatrixXd s2, phi2;
-  numerics::ExpAndPhi1(m, h_, &s2, &phi2, 1);
+  if (split) {
+    SplitStep(*data, 1, &s2, &phi2);
+  } else {
+    numerics::ExpAndPhi1(m, h_, &s2, &phi2, 1);
+  }
   data->defect = data->norm_inf * ((phi - phi2).cwiseAbs().rowwise().sum().maxCoeff() +
                                    (s - s2).cwiseAbs().rowwise().sum().maxCoeff() * h_);
+}
+
+void ExactIntegrator::SplitStep(const PhaseData& data, int extra_doublings, Eigen::MatrixXd* s,
+                                Eigen::MatrixXd* phi) {
+  // m = [C 0; R −A] over (other, low-pass) states: exp(m σ) = [E 0; L e^{−Aσ}] with E = exp(C σ)
+  // (ExpAndPhi1 of C alone) and, row r, L_r = σ Σ_k g_k(−a_r σ) u_k, u_k = R_r (C σ)^k / k! (the
+  // decay of the input R_r E(u) over the substep, numerics/exponential_moments.h); Φ's row
+  // ∫₀^σ L_r = σ² Σ_k g_{k+1}(−a_r σ) / (k+1) u_k and σ g_0 on the diagonal. σ = h / 2^q with
+  // ‖C‖∞ σ <= 1 (‖u C‖₁ <= ‖u‖₁ ‖C‖∞), then q doublings Φ ← Φ (I + S), S ← S².
+  const int a = active_;
+  Eigen::MatrixXd& c = split_c_;
+  data.m_series.CopyTo(&c);
+  const double theta = data.series_norm * h_;
+  const int doublings =
+      (theta > 1.0 ? static_cast<int>(std::ceil(std::log2(theta))) : 0) + extra_doublings;
+  const double sigma = std::ldexp(h_, -doublings);
+  const double theta_b = std::ldexp(theta, -doublings);
+  numerics::ExpAndPhi1(c, sigma, s, phi);
+  // Terms 0 … K of the rows: the tail after K is below θ^{K+1}/(K+1)! e^θ.
+  int last = 0;
+  for (double tail = theta_b; last < kMaxTaylorTerms - 2 && tail * std::exp(theta_b) > 0x1p-54;) {
+    ++last;
+    tail *= theta_b / (last + 1);
+  }
+  const auto lowpass = static_cast<Eigen::Index>(lowpass_.size());
+  Eigen::MatrixXd &u = split_u_, &next = split_next_;
+  u.setZero(lowpass, a);
+  for (Eigen::Index r = 0; r < lowpass; ++r) {
+    for (int j = 0; j < a; ++j) u(r, j) = data.lowpass_rows[r * stride_ + j];
+  }
+  std::vector<double>& g = split_weights_;
+  g.resize(static_cast<size_t>(lowpass) * (last + 2));
+  for (Eigen::Index r = 0; r < lowpass; ++r) {
+    numerics::ExponentialMoments(-data.lowpass_rate[r] * sigma, last + 1, &g[r * (last + 2)]);
+  }
+  Eigen::MatrixXd &s_rows = split_s_rows_, &phi_rows = split_phi_rows_;
+  s_rows.setZero(lowpass, a);
+  phi_rows.setZero(lowpass, a);
+  for (int k = 0; k <= last; ++k) {
+    if (k > 0) {
+      next.noalias() = u * c;
+      u = (sigma / k) * next;
+    }
+    for (Eigen::Index r = 0; r < lowpass; ++r) {
+      const double* w = &g[r * (last + 2)];
+      s_rows.row(r) += (sigma * w[k]) * u.row(r);
+      phi_rows.row(r) += (sigma * sigma * w[k + 1] / (k + 1)) * u.row(r);
+    }
+  }
+  for (Eigen::Index r = 0; r < lowpass; ++r) {
+    const int y = lowpass_[r];
+    s->row(y) = s_rows.row(r);
+    phi->row(y) = phi_rows.row(r);
+    (*s)(y, y) = std::exp(-data.lowpass_rate[r] * sigma);
+    (*phi)(y, y) = sigma * g[r * (last + 2)];
+  }
+  Eigen::MatrixXd& product = split_product_;
+  for (int i = 0; i < doublings; ++i) {
+    numerics::Multiply(*phi, *s, &product);
+    *phi += product;
+    numerics::Multiply(*s, *s, &product);
+    *s = product;
+  }
 }
 
 void ExactIntegrator::BuildLadder(PhaseData* data) {
@@ -934,8 +1038,9 @@ MILLKIT_HOT void ExactIntegrator::ExpandStep(const PhaseData& data, const double
     Copy(v1, stride_, vector(used));
     int terms = 1;
     // Terms until they no longer change v at the piece's start scale (‖v‖ grows by at most e
-    // over a piece, and a cancelling sum is no more accurate than that).
-    const double start = numerics::MaxAbsPadded(v1, stride_);
+    // over a piece, and a cancelling sum is no more accurate than that): the scale of the
+    // components the series carries (a fast low-pass state's v must not end it early).
+    const double start = BoundNorm(data, v1);
     if (start != 0.0) {
       for (int k = 1; k < kMaxTaylorTerms; ++k) {
         double* u = vector(used + k);
@@ -984,14 +1089,21 @@ void ExactIntegrator::LowpassAt(const PhaseData& data, int p, double s, double* 
   double* g = lowpass_weights_.data();
   for (int r = 0; r < series.lowpass; ++r) {
     const int y = lowpass_[r];
-    const double rate = data.lowpass_rate[r];
-    numerics::ExponentialMoments(-rate * tau, terms, g);
+    const double z_decay = -data.lowpass_rate[r] * tau;
+    // The weights of the last (z, terms) are kept: both spindles' filters and every expanded
+    // full step share them (the same numbers, computed once).
+    if (z_decay != weights_z_ || terms != weights_terms_) {
+      numerics::ExponentialMoments(z_decay, terms, g);
+      weights_decay_ = std::exp(z_decay);
+      weights_z_ = z_decay;
+      weights_terms_ = terms;
+    }
     const double* c = series.LowpassInput(p, r);
     // Σ_j g_j c_j s^j: the input in the variable σ / (s dt).
     double sum = 0.0, power = 1.0;
     for (int j = 0; j <= terms; ++j, power *= s) sum += g[j] * c[j] * power;
     const double start = series.z_start[static_cast<size_t>(p) * stride_ + y];
-    z[y] = std::exp(-rate * tau) * start + tau * sum;
+    z[y] = weights_decay_ * start + tau * sum;
   }
   // y' = row · z − a y, with every low-pass state of z in place (a row reads none of them).
   for (int r = 0; r < series.lowpass; ++r) {
@@ -1120,7 +1232,7 @@ std::string ExactIntegrator::Start(const Eigen::VectorXd& z0, const Phases& phas
 void ExactIntegrator::Refresh() {  // v, g0 and ‖v‖ from y in the current phases
   data_->m_padded.Apply(y_.data(), v_.data());
   data_->rows.Apply(y_.data(), g0_.data());
-  v_norm_ = numerics::MaxAbsPadded(v_.data(), stride_);
+  v_norm_ = BoundNorm(*data_, v_.data());
 }
 
 MILLKIT_HOT void ExactIntegrator::AdvanceLeg(double t, const Leg& leg, LegEnd* leg_end) {
@@ -1144,7 +1256,7 @@ MILLKIT_HOT void ExactIntegrator::AdvanceLeg(double t, const Leg& leg, LegEnd* l
   double tau_event = 0.0;
   int crossed = -1;
   bool event = false;
-  if (data->norm_inf * tau > kMaxTaylorPieces) {
+  if (data->series_norm * tau > kMaxTaylorPieces) {
     event = StiffAdvance(data, t, tau, y.data(), v.data(), g0.data(), y1.data(), v1.data(),
                          end.data(), &tau_event, &crossed);
     if (!summary_->message.empty()) return fail(summary_->message);
@@ -1168,7 +1280,7 @@ MILLKIT_HOT void ExactIntegrator::AdvanceLeg(double t, const Leg& leg, LegEnd* l
     } else {
       ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
       expanded = true;
-      growth = std::exp(std::min(data->norm_inf * tau, 700.0));
+      growth = std::exp(std::min(data->series_norm * tau, 700.0));
     }
     ++summary_->steps;
     // Non-finite states show in v first (y1 = y + Φ v).
@@ -1261,7 +1373,7 @@ MILLKIT_HOT void ExactIntegrator::AdvanceLeg(double t, const Leg& leg, LegEnd* l
   y.swap(y1);
   v.swap(v1);
   Copy(end.data(), count, g0.data());
-  v_norm_ = numerics::MaxAbsPadded(v.data(), active_stride_);
+  v_norm_ = BoundNorm(*data, v.data());
   leg_end->kind = LegEnd::Kind::kReached;
   leg_end->t = target;
   leg_end->elapsed = tau;

@@ -420,9 +420,14 @@ class SensitivityPass final : public HybridObserver {
     decay->resize(sinks);
     weights->resize(sinks * (terms + 1));
     for (size_t r = 0; r < sinks; ++r) {
+      double* g = weights->data() + r * (terms + 1);
+      if (r > 0 && data.sink_rate[r] == data.sink_rate[r - 1]) {  // two channels' equal filters
+        (*decay)[r] = (*decay)[r - 1];
+        std::copy(g - (terms + 1), g, g);
+        continue;
+      }
       const double z = -data.sink_rate[r] * tau;
       (*decay)[r] = std::exp(z);
-      double* g = weights->data() + r * (terms + 1);
       numerics::ExponentialMoments(z, terms, g);
       for (int k = 0; k <= terms; ++k) g[k] *= tau;
     }
@@ -609,7 +614,14 @@ class SensitivityPass final : public HybridObserver {
     for (double bound = theta; terms < kMaxTaylorTerms && bound > 0.25 * kEps; ++terms) {
       bound *= theta / (terms + 1);
     }
-    SinkWeights(data, dt, terms, &decay_, &weights_);
+    // Legs of one length (the full steps before caching) in phase sets of the same filters
+    // share their weights: kept from the last call.
+    if (dt != weights_tau_ || terms != weights_terms_ || data.sink_rate != weights_rates_) {
+      SinkWeights(data, dt, terms, &decay_, &weights_);
+      weights_tau_ = dt;
+      weights_terms_ = terms;
+      weights_rates_ = data.sink_rate;
+    }
     const auto sinks = static_cast<Eigen::Index>(data.sinks.size());
     for (int piece = 0; piece < count; ++piece) {
       y_term_ = y_;
@@ -674,7 +686,10 @@ class SensitivityPass final : public HybridObserver {
   // Scratch of Propagate and Recorded.
   Eigen::VectorXd y_, y_term_, y_next_, stacked_scratch_, sink_y_;
   RowMatrix s_term_, s_next_, sink_s_;
-  std::vector<double> decay_, weights_;
+  std::vector<double> decay_, weights_;  // SinkWeights at (weights_tau_, weights_terms_) for
+  double weights_tau_ = -1.0;            // sinks of rates weights_rates_ (Propagate)
+  int weights_terms_ = -1;
+  std::vector<double> weights_rates_;
   Eigen::MatrixXd torque_scratch_;
   std::vector<Eigen::MatrixXd> out_;
   std::string unavailable_;

@@ -172,6 +172,14 @@ TEST_CASE("random line variants change only what they name, each within its stat
     for (const auto& channel : lowpass.config.channels) CHECK(channel.lowpass_Hz == cutoff);
     CHECK(lowpass.record.values != base.record.values);
     CHECK(lowpass.truth_values == base.truth_values);
+    const RandomLineCase fast = MakeRandomLineCase(seed, RandomLineVariant::kFastLowpass);
+    CHECK(fast.record_spec.defects.lowpass_Hz >= 0.5 * rate * (1.0 - 1e-12));
+    CHECK(fast.record_spec.defects.lowpass_Hz <= 5.0 * rate * (1.0 + 1e-12));
+    CHECK(fast.record_spec.defects.oversample == 64);
+    for (const auto& channel : fast.config.channels) {
+      CHECK(channel.lowpass_Hz == fast.record_spec.defects.lowpass_Hz);
+    }
+    CHECK(fast.record.values != lowpass.record.values);
 
     // Combined: each variant as alone (the first with its own stream), the filter over the law.
     const RandomLineCase both = MakeRandomLineCase(
@@ -192,6 +200,8 @@ TEST_CASE("random line variants change only what they name, each within its stat
   CHECK(ParseRandomLineVariants("no-pull+lowpass", &parsed));
   CHECK(parsed ==
         std::vector<RandomLineVariant>{RandomLineVariant::kNoPull, RandomLineVariant::kLowpass});
+  CHECK(ParseRandomLineVariants("fast-lowpass", &parsed));
+  CHECK(parsed == std::vector<RandomLineVariant>{RandomLineVariant::kFastLowpass});
   CHECK(ParseRandomLineVariants("drive", &parsed));
   CHECK(parsed.size() == 1);
   CHECK_FALSE(ParseRandomLineVariants("no-pull+", &parsed));

@@ -57,13 +57,10 @@
 namespace millkit::identify {
 
 // A channel's recorder low-pass runs inside the model (driveline::Link::recorder_lowpass_Hz),
-// exact at the record's times, when it is at most half the record's rate. Where two channels of
-// one link have different filters the model is sampled at kFilterOversample points per record
-// step from the record's start and each channel's filter applied as linear between them; where
-// every filter is above half the rate (it follows the torque within a step), at
-// kFastFilterOversample points.
+// exact at the record's times at any cutoff. Where two channels of one link have different
+// filters the model is sampled at kFilterOversample points per record step from the record's
+// start and each channel's filter applied as linear between them.
 inline constexpr int kFilterOversample = 16;
-inline constexpr int kFastFilterOversample = 4;
 
 // Every knob of the fit's strategy and judgement. The defaults are set by the random-lines
 // benchmark (bench/identify/bench_random_lines.cpp), not by any one scene.
