@@ -19,7 +19,6 @@
 #include "millkit/driveline/simulation.h"
 #include "millkit/io/input_error.h"
 #include "millkit/io/number_format.h"
-#include "numerics/median_interval.h"
 
 namespace millkit::identify {
 

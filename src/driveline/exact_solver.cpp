@@ -547,7 +547,7 @@ class ExactIntegrator final : public ModeIntegrator {
     double norm = 0.0;
     for (int i = 0; i < active_stride_; ++i) {
       const double size = std::abs(v[i]) * core_mask_[i];
-      norm = size > norm || size != size ? size : norm;  // NOLINT(misc-redundant-expression)
+      norm = size > norm || std::isnan(size) ? size : norm;
     }
     return norm;
   }
