@@ -2,7 +2,6 @@
 // Derivatives::kSensitivity against central differences of the same projected residual.
 // identify/fit_model.h comes first: glog (through Ceres) defines CHECK, which Catch's replaces.
 #include "identify/fit_model.h"
-#undef CHECK
 
 #include <algorithm>
 #include <catch2/catch.hpp>

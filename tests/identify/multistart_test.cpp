@@ -4,7 +4,6 @@
 // a sharply curved valley.
 // identify/fit_model.h comes first: glog (through Ceres) defines CHECK, which Catch's replaces.
 #include "identify/fit_model.h"
-#undef CHECK
 
 #include <algorithm>
 #include <catch2/catch.hpp>

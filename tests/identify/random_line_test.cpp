@@ -68,7 +68,7 @@ TEST_CASE("random line: fifty seeds stay inside the stated ranges") {
       CHECK(f <= kMaxModeHz);
     }
 
-    CHECK(c.record.channels.size() >= 1);
+    CHECK_FALSE(c.record.channels.empty());
     CHECK(c.record.channels.size() <= 3);
     const std::set<std::string> distinct(c.record.channels.begin(), c.record.channels.end());
     CHECK(distinct.size() == c.record.channels.size());
