@@ -1,7 +1,9 @@
 // The fit's Jacobian from sensitivities (issue 15 item 1): ProjectedResidual with
 // Derivatives::kSensitivity against central differences of the same projected residual.
 // identify/fit_model.h comes first: glog (through Ceres) defines CHECK, which Catch's replaces.
+// clang-format off
 #include "identify/fit_model.h"
+// clang-format on
 
 #include <algorithm>
 #include <catch2/catch.hpp>

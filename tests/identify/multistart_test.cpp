@@ -3,7 +3,11 @@
 // parameter held (identify/uncertainty.h): the check of the standard errors, and the walk along
 // a sharply curved valley.
 // identify/fit_model.h comes first: glog (through Ceres) defines CHECK, which Catch's replaces.
+// clang-format off
 #include "identify/fit_model.h"
+// clang-format on
+
+#include "identify/multistart.h"
 
 #include <algorithm>
 #include <catch2/catch.hpp>
@@ -12,7 +16,6 @@
 #include <optional>
 #include <random>
 
-#include "identify/multistart.h"
 #include "identify/random_line.h"
 #include "identify/record_noise.h"
 #include "identify/uncertainty.h"
