@@ -112,8 +112,23 @@ TEST_CASE("Records fitted together must all hold every channel and the window") 
     const int keep = 500;  // 0.25 s of the 0.4 s record, before the window's end at 0.3 s
     records[1].time_s.resize(keep);
     for (auto& column : records[1].values) column.resize(keep);
+    millkit::testing::ScratchDir dir;
+    const std::string config =
+        "[fit]\nwindow = [0.0, 0.3]\n[[free]]\nname = \"bite_time\"\n"
+        "[[channel]]\ncolumn = \"upper_spindle\"\n[[channel]]\ncolumn = \"lower_spindle\"\n";
+    millkit::testing::WriteText(dir / "fit.toml", config);
+    const auto scene = Mill5Scene();
+    CHECK_THROWS_WITH(LoadFitConfig((dir / "fit.toml").string(), records, scene),
+                      Contains("window") && Contains("bite_b.csv"));
+  }
+  SECTION("without a window the fit takes the span both records cover") {
+    const int keep = 500;
+    records[1].time_s.resize(keep);
+    for (auto& column : records[1].values) column.resize(keep);
     auto scene = Mill5Scene();
-    CHECK_THROWS_WITH(Mill5Config(records, &scene), Contains("window") && Contains("bite_b.csv"));
+    const FitConfig config = Mill5Config(records, &scene);
+    CHECK(config.window_start_s == 0.0);
+    CHECK(config.window_end_s == records[1].time_s.back());
   }
 }
 
