@@ -15,11 +15,30 @@ namespace {
 // (eigenvalues of JᵀJ below 1e-14 of the largest: roundoff of the finite differences).
 constexpr double kCovarianceCut = 1e-7;
 
+// A quantity whose column moves the weighted residuals by less than this many noise units over
+// its whole bound range (1 in unit coordinates) is held where it is: whatever value in its bounds
+// it takes changes the others' fit by less than this many standard errors.
+constexpr double kNegligibleEffect = 0.01;
+
+// The fitted quantities the record depends on (Covariance). Scaled to unit length like the
+// others, a negligible column is its roundoff (or a trace of an effect) pointing anywhere, and
+// takes from the others whatever part of their columns it points along: their standard errors
+// then depend on where it is held (1.0–1.4 times on the bundled balanced record).
+std::vector<int> Informative(const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted,
+                             double noise_scale) {
+  std::vector<int> informative;
+  for (const int j : fitted) {
+    if (jacobian.col(j).norm() >= kNegligibleEffect * noise_scale) informative.push_back(j);
+  }
+  return informative;
+}
+
 }  // namespace
 
-Eigen::MatrixXd Covariance(const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted,
+Eigen::MatrixXd Covariance(const Eigen::MatrixXd& jacobian, const std::vector<int>& all_fitted,
                            double noise_scale) {
   const int size = static_cast<int>(jacobian.cols());
+  const std::vector<int> fitted = Informative(jacobian, all_fitted, noise_scale);
   Eigen::MatrixXd reduced(jacobian.rows(), fitted.size());
   for (size_t j = 0; j < fitted.size(); ++j) reduced.col(j) = jacobian.col(fitted[j]);
   // Column scaling first: quantities in different units must not cut each other's singular
@@ -45,27 +64,38 @@ Eigen::MatrixXd Covariance(const Eigen::MatrixXd& jacobian, const std::vector<in
       covariance(fitted[a], fitted[b]) = scaled(a, b) / (na * nb) * noise_scale * noise_scale;
     }
   }
+  // A held quantity: its variance were every other one known (noise / ‖column‖)², uncorrelated.
+  for (const int j : all_fitted) {
+    if (std::find(fitted.begin(), fitted.end(), j) != fitted.end()) continue;
+    const double norm = jacobian.col(j).norm();
+    covariance(j, j) = norm > 0.0 ? noise_scale * noise_scale / (norm * norm)
+                                  : std::numeric_limits<double>::quiet_NaN();
+  }
   return covariance;
 }
 
 void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
-                        const std::vector<int>& fitted, double noise_scale,
+                        const std::vector<int>& all_fitted, double noise_scale,
                         const FitOptions& options, FitResult* result) {
   const int p = model.parameters();
+  // The collinearity test on the columns the record depends on, as the covariance (a negligible
+  // column fails the first test below on its own).
+  const std::vector<int> fitted = Informative(jacobian, all_fitted, noise_scale);
   Eigen::MatrixXd scaled(jacobian.rows(), fitted.size());
-  std::vector<double> norms(fitted.size());
   for (size_t j = 0; j < fitted.size(); ++j) {
-    norms[j] = jacobian.col(fitted[j]).norm();
-    scaled.col(j) = norms[j] > 0.0 ? Eigen::VectorXd(jacobian.col(fitted[j]) / norms[j])
-                                   : Eigen::VectorXd(jacobian.col(fitted[j]));
+    const double norm = jacobian.col(fitted[j]).norm();
+    scaled.col(j) = norm > 0.0 ? Eigen::VectorXd(jacobian.col(fitted[j]) / norm)
+                               : Eigen::VectorXd(jacobian.col(fitted[j]));
   }
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinV);
   const auto& sv = svd.singularValues();
   result->summary.reciprocal_condition =
       sv.size() > 0 && sv(0) > 0.0 ? sv(sv.size() - 1) / sv(0) : 0.0;
-  for (size_t j = 0; j < fitted.size(); ++j) {
-    if (fitted[j] >= p) continue;  // gains and offsets are reported, not flagged
-    const int s = fitted[j];
+  for (size_t q = 0; q < all_fitted.size(); ++q) {
+    if (all_fitted[q] >= p) continue;  // gains and offsets are reported, not flagged
+    const int s = all_fitted[q];
+    const double norm = jacobian.col(s).norm();
+    const auto in_svd = std::find(fitted.begin(), fitted.end(), s);
     auto& estimate = result->parameters[s];
     // On the scale the parameter is fitted on (unit coordinates: a log scale for a scale
     // parameter with wide bounds), where the bound range is 1: a damping of 1e4 ± 2e4 near the
@@ -79,9 +109,8 @@ void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
              (map.log_scale() ? " on the log scale it is fitted on" : "");
     };
     // noise/‖column‖ is in unit coordinates.
-    const double alone =
-        norms[j] > 0.0 ? noise_scale / norms[j] : std::numeric_limits<double>::infinity();
-    if (!(alone <= limit)) {
+    const double alone = norm > 0.0 ? noise_scale / norm : std::numeric_limits<double>::infinity();
+    if (!(alone <= limit) || in_svd == fitted.end()) {
       estimate.identifiable = false;
       estimate.why_not =
           "the record hardly depends on it: even with every other quantity known "
@@ -89,6 +118,7 @@ void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
           ShortNumber(alone * per_unit) + ", more than " + range();
       continue;
     }
+    const auto j = in_svd - fitted.begin();
     for (int k = 0; k < sv.size(); ++k) {
       if (sv(k) < options.rank_tolerance * sv(0) && std::abs(svd.matrixV()(j, k)) > 0.1) {
         estimate.identifiable = false;
@@ -124,9 +154,11 @@ std::vector<ProfileProbe> ProfileProbes(const FitModel& model, const std::vector
 
 namespace {
 
-// The covariance at u (cost ½χ² there) from a fresh Jacobian, with the noise scale of that cost.
+// The covariance at u (cost ½χ² there) from a fresh Jacobian, with the noise scale of that cost,
+// and (when asked) the fitted quantities it does not hold (Informative).
 bool FreshCovariance(const FitModel& model, const std::vector<double>& u, double cost,
-                     const FitOptions& options, Eigen::MatrixXd* covariance, double* noise_scale) {
+                     const FitOptions& options, Eigen::MatrixXd* covariance, double* noise_scale,
+                     std::vector<int>* informative = nullptr) {
   Eigen::VectorXd r;
   std::vector<Nuisance> nuisance;
   Eigen::MatrixXd jacobian;
@@ -139,6 +171,7 @@ bool FreshCovariance(const FitModel& model, const std::vector<double>& u, double
   const double dof = std::max(1.0, static_cast<double>(model.residuals() - fitted.size()));
   *noise_scale = std::sqrt(2.0 * cost / dof);
   *covariance = Covariance(jacobian, fitted, *noise_scale);
+  if (informative != nullptr) *informative = Informative(jacobian, fitted, *noise_scale);
   return true;
 }
 
@@ -149,25 +182,41 @@ std::vector<std::vector<double>> HopPoints(const FitModel& model, const std::vec
   std::vector<std::vector<double>> points;
   Eigen::MatrixXd covariance;
   double noise_scale = 0.0;
-  if (options.hops < 1 || !FreshCovariance(model, u, cost, options, &covariance, &noise_scale)) {
+  std::vector<int> informative;
+  if (options.hops < 1 ||
+      !FreshCovariance(model, u, cost, options, &covariance, &noise_scale, &informative)) {
     return points;
   }
   const int p = model.parameters();
   // The scene block of the covariance, factored: a hop of radius ρ is ρ standard errors of the
-  // joint distribution in a random direction.
-  const Eigen::MatrixXd scene_block = covariance.topLeftCorner(p, p);
+  // joint distribution in a random direction. A held parameter (Covariance) stays where it is: its
+  // variance, the square of a standard error of up to 1e9 of its range, would also drown the
+  // others' eigenvalues in the factorisation's roundoff.
+  std::vector<int> moving;
+  for (const int j : informative) {
+    if (j < p) moving.push_back(j);
+  }
+  const int m = static_cast<int>(moving.size());
+  Eigen::MatrixXd scene_block(m, m);
+  for (int a = 0; a < m; ++a) {
+    for (int b = 0; b < m; ++b) scene_block(a, b) = covariance(moving[a], moving[b]);
+  }
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(scene_block);
   const Eigen::VectorXd roots = eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt();
   const Eigen::MatrixXd root = eigen.eigenvectors() * roots.asDiagonal();
   std::mt19937_64 random(options.hop_seed);
   std::uniform_real_distribution<double> uniform(-1.0, 1.0);
   for (int h = 0; h < options.hops; ++h) {
+    // p draws whatever m is: the hops of a line without held parameters stay as they were.
     Eigen::VectorXd z(p);
     for (int i = 0; i < p; ++i) z(i) = uniform(random);
-    if (!(z.norm() > 0.0)) continue;
-    const Eigen::VectorXd step = root * (options.hop_radius * z / z.norm());
+    const Eigen::VectorXd zm = z.head(m);
+    if (!(zm.norm() > 0.0)) continue;
+    const Eigen::VectorXd step = root * (options.hop_radius * zm / zm.norm());
     std::vector<double> point(u);
-    for (int i = 0; i < p; ++i) point[i] = std::clamp(u[i] + step(i), 0.0, 1.0);
+    for (int a = 0; a < m; ++a) {
+      point[moving[a]] = std::clamp(u[moving[a]] + step(a), 0.0, 1.0);
+    }
     points.push_back(std::move(point));
   }
   return points;

@@ -12,12 +12,16 @@ namespace millkit::identify {
 
 // Covariance over θ (scene parameters in unit coordinates, then gain and scaled offset of every
 // block) from the weighted Jacobian: (JᵀJ)⁺ over the fitted columns by SVD, singular values
-// below 1e-7 of the largest dropped, times noise_scale². Constant columns get zero rows.
+// below 1e-7 of the largest dropped, times noise_scale². A quantity the record hardly depends on
+// (its column moves the residuals by less than 0.01 noise over its whole bound range) is held:
+// it is left out of the others' covariance and gets only its own variance were every other one
+// known, (noise_scale / ‖column‖)² (NaN for a constant column).
 Eigen::MatrixXd Covariance(const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted,
                            double noise_scale);
 
 // Flags the parameters the record cannot determine (FitOptions: rank_tolerance,
-// unidentifiable_fraction), on the column-scaled Jacobian; sets reciprocal_condition.
+// unidentifiable_fraction), on the column-scaled Jacobian (without the columns Covariance holds);
+// sets reciprocal_condition.
 //  - sensitivity: even if every other quantity were known, the standard error noise/‖column‖
 //    would exceed the fraction of the bound width (the record hardly depends on it);
 //  - collinearity: a singular value below rank_tolerance of the largest whose singular vector

@@ -13,6 +13,7 @@
 
 #include "identify/instrument_filter.h"
 #include "identify/random_line.h"
+#include "identify/uncertainty.h"
 #include "millkit/driveline/model.h"
 #include "millkit/driveline/scene.h"
 #include "millkit/driveline/simulation.h"
@@ -317,6 +318,36 @@ TEST_CASE("The Gauss-Newton step left is measured in standard errors", "[fit]") 
   CHECK(identify::GaussNewtonStepInStandardErrors(repeated, r) == Approx(expected).epsilon(1e-8));
   // No degree of freedom left: no standard error to measure in.
   CHECK(std::isnan(identify::GaussNewtonStepInStandardErrors(j.topRows(3), r.head(3))));
+}
+
+TEST_CASE("A quantity the record hardly depends on is held out of the others' covariance",
+          "[fit]") {
+  std::mt19937_64 random(29);
+  std::normal_distribution<double> normal;
+  const int n = 200;
+  Eigen::MatrixXd j(n, 3);
+  for (int i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) j(i, c) = normal(random);
+  }
+  // A fourth column nearly along the first: scaled to unit length, it would trade off against it.
+  Eigen::VectorXd along(n);
+  for (int i = 0; i < n; ++i) along[i] = j(i, 0) + 0.3 * normal(random);
+  along.normalize();
+  const Eigen::MatrixXd three = identify::Covariance(j, {0, 1, 2}, 1.0);
+  for (const double size : {1e-3, 1e-9}) {  // whole-range effect 0.001 and 1e-9 noise units
+    INFO("column norm " << size);
+    Eigen::MatrixXd four(n, 4);
+    four << j, size * along;
+    const Eigen::MatrixXd covariance = identify::Covariance(four, {0, 1, 2, 3}, 1.0);
+    CHECK((covariance.topLeftCorner(3, 3) - three).norm() <= 1e-12 * three.norm());
+    CHECK(covariance(3, 3) == Approx(1.0 / (size * size)).epsilon(1e-12));
+    CHECK(covariance.row(3).head(3).isZero(0.0));
+  }
+  // An effect of 0.1 noise units over the range is kept: the trade-off with the first is real.
+  Eigen::MatrixXd kept(n, 4);
+  kept << j, 0.1 * along;
+  const Eigen::MatrixXd covariance = identify::Covariance(kept, {0, 1, 2, 3}, 1.0);
+  CHECK(covariance(0, 0) > 5.0 * three(0, 0));
 }
 
 namespace {
