@@ -125,8 +125,10 @@ TEST_CASE("Records fitted together must all hold every channel and the window") 
     const int keep = 500;
     records[1].time_s.resize(keep);
     for (auto& column : records[1].values) column.resize(keep);
-    auto scene = Mill5Scene();
-    const FitConfig config = Mill5Config(records, &scene);
+    const auto scene = Mill5Scene();
+    const FitConfig config =
+        LoadFitConfig(millkit::testing::SourcePath("datasets/records/mill5_two_spindles.fit.toml"),
+                      records, scene);
     CHECK(config.window_start_s == 0.0);
     CHECK(config.window_end_s == records[1].time_s.back());
   }
