@@ -374,6 +374,18 @@ std::vector<LocalFit> RefineStarts(FitModel* model, const FitOptions& options,
   return minima;
 }
 
+double PrecisionLength(const LocalFit& at, const std::vector<double>& u) {
+  const auto n = static_cast<Eigen::Index>(at.u.size());
+  if (at.precision.rows() != n || static_cast<Eigen::Index>(u.size()) != n) {
+    return std::numeric_limits<double>::infinity();
+  }
+  Eigen::VectorXd d(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    d[i] = ParameterMap::AngleFromUnit(u[i]) - ParameterMap::AngleFromUnit(at.u[i]);
+  }
+  return std::sqrt(std::max(0.0, d.dot(at.precision * d)));
+}
+
 Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& options,
                     const std::vector<ChannelNoise>& noise, const std::vector<double>& start) {
   Search search;

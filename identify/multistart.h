@@ -53,6 +53,11 @@ LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<do
                 bool final_stage, int iterations, const std::vector<int>& frozen = {},
                 const LocalFit* known = nullptr);
 
+// The length of u − at.u in the angles φ under at.precision: how many standard errors of the
+// linearisation at `at` apart the two points lie, every direction counted (a correlated one
+// too). Infinity when `at` has no precision.
+double PrecisionLength(const LocalFit& at, const std::vector<double>& u);
+
 // Window divisors of the continuation stages (FitModel::SetStage), the last 1 (whole window).
 std::vector<double> ContinuationStages(const FitModel& model, const FitOptions& options);
 

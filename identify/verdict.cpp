@@ -128,15 +128,28 @@ void JudgeFit(const FitModel& model, const std::vector<ChannelNoise>& noise,
 
   // The best minimum reached only from a hop, a gap kick, a followed valley or a probe below a
   // minimum (start −1), well below every start's fit: the search's starts missed that valley, and
-  // nothing says they did not miss a lower one.
+  // nothing says they did not miss a lower one. A start's fit within distinct_minimum_se of the
+  // best under the best's linearisation (the Mahalanobis length: every direction, correlated ones
+  // too) ended in the best's own valley, higher on a rough floor (the staircase of the no_pull
+  // and linear laws): the starts did not miss it, and a warning says how rough it is.
   bool missed_by_starts = false;
   if (chosen.start < 0) {
     double best_start = std::numeric_limits<double>::infinity();
+    double nearest = std::numeric_limits<double>::infinity();  // a start's fit, from the best
     for (const auto& fit : minima) {
-      if (fit.usable && fit.start >= 0) best_start = std::min(best_start, fit.cost);
+      if (!fit.usable || fit.start < 0) continue;
+      best_start = std::min(best_start, fit.cost);
+      nearest = std::min(nearest, PrecisionLength(chosen, fit.u));
     }
     const double below = 2.0 * (best_start - chosen.cost) / std::max(scale2, 1e-300);
-    if (below > options.ambiguity_chi2) {
+    if (below > options.ambiguity_chi2 && nearest <= options.distinct_minimum_se) {
+      warnings.push_back(
+          "the starts' fits stopped in the best minimum's valley (the nearest " +
+          ShortNumber(nearest) + " standard errors from it), the lowest at a chi2 " +
+          ShortNumber(below) +
+          " above its bottom, which only a basin hop, a gap kick, a followed valley or a "
+          "restart from a probe below a minimum reached: the misfit is rough there");
+    } else if (below > options.ambiguity_chi2) {
       missed_by_starts = true;
       warnings.push_back(
           "the best minimum was reached only by a basin hop, a gap kick, a followed valley or a "

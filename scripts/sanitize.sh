@@ -78,6 +78,9 @@ slow+="|verdict ok: a profile probe below the minimum is gone on from"
 # Random line 393 fitted twice, with and without the gap kicks: 64 s under the sanitizers, the
 # longest left (clean-clone run of 2026-11-27); every fit here runs the kicks (GapKicks and their
 # refinement with the rejoin stop), and "an iteration limit of 1" keeps a not_converged verdict.
+# Random line 34 under no_pull, whose starts stop on the rough floor of the best's valley: one
+# whole fit (about 1.5 s plain); its rule (verdict.cpp) runs in every fit here.
 slow+="|standard errors: what is correlated with a widened parameter widens with it"
 slow+="|verdict not_converged: a gap kicked into the next valley"
+slow+="|verdict ok: starts that stopped on the rough floor"
 ctest --output-on-failure -j "$(nproc)" -LE package -E "$slow"

@@ -81,17 +81,6 @@ struct Linearised {
   Eigen::MatrixXd covariance;
 };
 
-// The Mahalanobis length of a − b (unit coordinates) under the precision of `at` (angles).
-double Length(const std::vector<double>& a, const std::vector<double>& b,
-              const identify::LocalFit& at) {
-  Eigen::VectorXd d(a.size());
-  for (size_t i = 0; i < a.size(); ++i) {
-    d[i] =
-        identify::ParameterMap::AngleFromUnit(a[i]) - identify::ParameterMap::AngleFromUnit(b[i]);
-  }
-  return std::sqrt(d.dot(at.precision * d));
-}
-
 }  // namespace
 
 TEST_CASE("A fit that comes back to a known minimum stops there, and only there", "[fit]") {
@@ -117,14 +106,15 @@ TEST_CASE("A fit that comes back to a known minimum stops there, and only there"
       hop[i] = identify::ParameterMap::UnitFromAngle(
           identify::ParameterMap::AngleFromUnit(minimum.u[i]) + step[i]);
     }
-    REQUIRE(Length(hop, minimum.u, minimum) == Approx(3.0).epsilon(0.05));
+    // PrecisionLength measures it so (the step is 3 / ‖z‖ z in the Cholesky factor's units).
+    REQUIRE(identify::PrecisionLength(minimum, hop) == Approx(3.0).epsilon(0.05));
 
     const identify::LocalFit alone = identify::Refine(model, options, hop, true, 100);
     const identify::LocalFit back = identify::Refine(model, options, hop, true, 100, {}, &minimum);
     // Left alone the fit reaches the same minimum, within the rough floor of the misfit ...
     REQUIRE(alone.converged);
     CHECK_FALSE(alone.rejoined);
-    CHECK(Length(alone.u, minimum.u, minimum) <= 0.3);
+    CHECK(identify::PrecisionLength(minimum, alone.u) <= 0.3);
     // ... which the fit told of it stops at, no later, and returns exactly.
     CHECK(back.rejoined);
     CHECK(back.converged);
@@ -143,6 +133,8 @@ TEST_CASE("A fit that comes back to a known minimum stops there, and only there"
     identify::LocalFit unmeasured = minimum;
     unmeasured.precision.resize(0, 0);
     CHECK_FALSE(identify::Refine(model, options, hop, true, 100, {}, &unmeasured).rejoined);
+    CHECK(std::isinf(identify::PrecisionLength(unmeasured, hop)));
+    CHECK(identify::PrecisionLength(minimum, minimum.u) == 0.0);
   }
 }
 
