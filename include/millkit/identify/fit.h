@@ -34,8 +34,10 @@
 //   not_converged  Levenberg–Marquardt did not converge at the best minimum (and, after the
 //                  rules below, when a probe beside the answer found a lower cost, or when only
 //                  a basin hop or an axis probe reached the best minimum, at a χ² more than
-//                  ambiguity_chi2 below every start's: the starts missed its valley, and may
-//                  have missed a lower one);
+//                  ambiguity_chi2 below every start's and no start's fit within
+//                  distinct_minimum_se of it under its linearisation: the starts missed its
+//                  valley, and may have missed a lower one; a start's fit that close stopped
+//                  on the valley's rough floor, which only a warning reports);
 //   misfit         some channel's residual is not its noise, at the one-sided level misfit_z:
 //                  its variance exceeds the noise variance (log-ratio test, both variances'
 //                  degrees of freedom), or its autocorrelation over up to 20 lags differs from
