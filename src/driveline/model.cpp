@@ -305,12 +305,9 @@ void Model::BuildSurfaces() {
   abs_surfaces_ = surfaces_.cwiseAbs();
 }
 
-void Model::LinearPieces(const Phases& phases, Eigen::MatrixXd* a_out,
-                         Eigen::MatrixXd* b_out) const {
-  Eigen::MatrixXd& a = *a_out;
-  Eigen::MatrixXd& b = *b_out;
-  a = Eigen::MatrixXd::Zero(nx_, nx_);
-  b = Eigen::MatrixXd::Zero(nx_, nw_);
+void Model::StateAndInputBlocks(const Phases& phases, Eigen::MatrixXd* m) const {
+  auto a = m->topLeftCorner(nx_, nx_);
+  auto b = m->block(0, nx_, nx_, nw_);
   for (int f = 0; f < flexible_link_count(); ++f) {
     const Link& link = scene_.links[flexible_links_[f]];
     const int ga = reduction_.group_of_mass[link.from], gb = reduction_.group_of_mass[link.to];
@@ -358,11 +355,7 @@ void Model::LinearPieces(const Phases& phases, Eigen::MatrixXd* a_out,
   if (filtered_links_.empty()) return;
   // y' = a (T z − y) with T the link's own torque row in these phases (a rigid link's reads the
   // accelerations, which do not depend on y).
-  const int n = augmented_size();
-  Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n, n);
-  m.topLeftCorner(nx_, nx_) = a;
-  m.block(0, nx_, nx_, nw_) = b;
-  const Eigen::MatrixXd torque = OwnLinkTorqueRows(phases, m);
+  const Eigen::MatrixXd torque = OwnLinkTorqueRows(phases, *m);
   for (const int l : filtered_links_) {
     const int y = filter_index_[l];
     const double rate = 2.0 * M_PI * scene_.links[l].recorder_lowpass_Hz;
@@ -372,13 +365,18 @@ void Model::LinearPieces(const Phases& phases, Eigen::MatrixXd* a_out,
   }
 }
 
-Eigen::MatrixXd Model::SystemMatrix(const Phases& phases) const {
-  Eigen::MatrixXd a, b;
-  LinearPieces(phases, &a, &b);
+void Model::LinearPieces(const Phases& phases, Eigen::MatrixXd* a, Eigen::MatrixXd* b) const {
   const int n = augmented_size();
   Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n, n);
-  m.topLeftCorner(nx_, nx_) = a;
-  m.block(0, nx_, nx_, nw_) = b;
+  StateAndInputBlocks(phases, &m);
+  *a = m.topLeftCorner(nx_, nx_);
+  *b = m.block(0, nx_, nx_, nw_);
+}
+
+Eigen::MatrixXd Model::SystemMatrix(const Phases& phases) const {
+  const int n = augmented_size();
+  Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n, n);
+  StateAndInputBlocks(phases, &m);
   // w' = s (the slope block); the constant 1 has slope 0 by construction of SetForcing.
   m.block(nx_, nx_ + nw_, nw_, nw_).setIdentity();
   return m;

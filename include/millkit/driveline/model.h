@@ -171,6 +171,9 @@ class Model {
 
  private:
   void BuildSurfaces();
+  // The blocks A (state by state) and B (state by forcing) of SystemMatrix written into m, which
+  // is augmented size square and zero on entry; the slope block is left zero.
+  void StateAndInputBlocks(const Phases& phases, Eigen::MatrixXd* m) const;
   // Outputs and LinkTorqueRows with every link's own torque (no recorder low-pass).
   void OwnOutputs(const Phases& phases, const Eigen::VectorXd& z, double* link_torque,
                   double* mass_speed, double* link_twist,
