@@ -122,28 +122,27 @@ TEST_CASE("A gap closed at idle is flagged not identifiable, the other parameter
   // The others' standard errors are those with the gap known (at a value the fit does not leave
   // it at): in their covariance, its roundoff column took up to 40 % from them, depending on
   // where the fit left it.
-  for (const double gap : {0.04}) {
-    INFO("lower_spindle.backlash set to " << gap);
-    for (const auto& p : fit.parameters) {
-      if (p.name == "lower_spindle.backlash") CHECK(std::abs(p.value - gap) > 1e-3);
-    }
-    auto known_scene = scene;
-    millkit::driveline::ParseSceneParameter(known_scene, "lower_spindle.backlash", "test")
-        .Set(gap, &known_scene);
-    FitConfig known = config;
-    std::erase_if(known.free, [](const FreeParameter& free) {
-      return free.parameter.name == "lower_spindle.backlash";
-    });
-    REQUIRE(known.free.size() + 1 == config.free.size());
-    const FitResult fixed = Fit(known_scene, record, known, FitOptions{});
-    REQUIRE(fixed.summary.success);
-    for (const auto& p : fixed.parameters) {
-      INFO(p.name);
-      const auto& same = std::find_if(fit.parameters.begin(), fit.parameters.end(),
-                                      [&](const auto& q) { return q.name == p.name; });
-      REQUIRE(same != fit.parameters.end());
-      CHECK(same->value == Approx(p.value).epsilon(1e-4));
-      CHECK(same->standard_error == Approx(p.standard_error).epsilon(0.01));
-    }
+  const double gap = 0.04;
+  INFO("lower_spindle.backlash set to " << gap);
+  for (const auto& p : fit.parameters) {
+    if (p.name == "lower_spindle.backlash") CHECK(std::abs(p.value - gap) > 1e-3);
+  }
+  auto known_scene = scene;
+  millkit::driveline::ParseSceneParameter(known_scene, "lower_spindle.backlash", "test")
+      .Set(gap, &known_scene);
+  FitConfig known = config;
+  std::erase_if(known.free, [](const FreeParameter& free) {
+    return free.parameter.name == "lower_spindle.backlash";
+  });
+  REQUIRE(known.free.size() + 1 == config.free.size());
+  const FitResult fixed = Fit(known_scene, record, known, FitOptions{});
+  REQUIRE(fixed.summary.success);
+  for (const auto& p : fixed.parameters) {
+    INFO(p.name);
+    const auto& same = std::find_if(fit.parameters.begin(), fit.parameters.end(),
+                                    [&](const auto& q) { return q.name == p.name; });
+    REQUIRE(same != fit.parameters.end());
+    CHECK(same->value == Approx(p.value).epsilon(1e-4));
+    CHECK(same->standard_error == Approx(p.standard_error).epsilon(0.01));
   }
 }
