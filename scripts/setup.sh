@@ -6,7 +6,7 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-$here/build}
 
 packages=(build-essential cmake libceres-dev libeigen3-dev libnlopt-cxx-dev libsundials-dev catch2
-          libcli11-dev libtomlplusplus-dev nlohmann-json3-dev libmatio-dev zlib1g-dev pkg-config python3 python3-numpy python3-scipy
+          libcli11-dev libtomlplusplus-dev nlohmann-json3-dev libmatio-dev zlib1g-dev pkg-config libmimalloc-dev python3 python3-numpy python3-scipy
           libopenmpi-dev openmpi-bin clang-14 libclang-rt-14-dev clang-format-14 clang-tidy-14)
 missing=()
 for p in "${packages[@]}"; do
