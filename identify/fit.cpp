@@ -107,11 +107,179 @@ bool ParseDerivatives(const std::string& text, Derivatives* derivatives) {
   return false;
 }
 
+namespace {
+
+// The run a record's channels need: the output times (the record's, or oversampled for filters
+// applied after the run) and the channels' links.
+struct ChannelRun {
+  driveline::SimulationOptions options;
+  bool filtered = false;  // the recorder filters are applied after the run
+  int first = 0;          // the record step of the first output time
+  int stride = 1;         // output times per record step
+  std::vector<int> links;
+  size_t samples = 0;
+};
+
+ChannelRun PrepareChannelRun(const Oscillogram& record, double origin_s,
+                             const std::vector<ChannelSpec>& channels, int begin, int end) {
+  ChannelRun run;
+  run.options.estimate_error = false;
+  // A modelled recorder filter runs inside the model (Link::recorder_lowpass_Hz: exact at the
+  // record's times, at any cutoff) when every channel of a link has the same one (RunScene).
+  // Otherwise the model is sampled kFilterOversample times per record step from the record's
+  // start and each channel's filter applied as linear between the points.
+  for (const auto& a : channels) {
+    for (const auto& b : channels) {
+      if (a.link_index == b.link_index && a.lowpass_Hz != b.lowpass_Hz) run.filtered = true;
+    }
+  }
+  run.first = run.filtered ? 0 : begin;
+  run.stride = run.filtered ? kFilterOversample : 1;
+  std::vector<double> times;
+  times.reserve(static_cast<size_t>(end - run.first - 1) * run.stride + 1);
+  for (int k = run.first; k < end; ++k) {
+    times.push_back(record.time_s[k] - origin_s);
+    if (k + 1 == end) break;
+    const double step = (record.time_s[k + 1] - record.time_s[k]) / run.stride;
+    for (int j = 1; j < run.stride; ++j) times.push_back(record.time_s[k] - origin_s + j * step);
+  }
+  if (times.front() < 0.0) {
+    throw InputError(record.source + ": record time " + std::to_string(record.time_s[run.first]) +
+                     " s lies before the time origin " + std::to_string(origin_s) + " s");
+  }
+  for (const auto& channel : channels) {
+    if (std::find(run.links.begin(), run.links.end(), channel.link_index) == run.links.end()) {
+      run.links.push_back(channel.link_index);
+    }
+  }
+  run.samples = times.size();
+  run.options.output_times = std::move(times);
+  return run;
+}
+
+// The scene a record's run simulates: to the record's last time, with the channels' recorder
+// filters inside the model unless they follow the run.
+driveline::Scene RunScene(const ChannelRun& run, const driveline::Scene& scene,
+                          const std::vector<ChannelSpec>& channels) {
+  driveline::Scene simulated = scene;
+  simulated.duration_s = run.options.output_times->back();
+  if (!run.filtered) {
+    for (const auto& channel : channels) {
+      simulated.links[channel.link_index].recorder_lowpass_Hz = channel.lowpass_Hz;
+    }
+  }
+  return simulated;
+}
+
+// A signal of the run's output times at the record steps in [begin, end) (through the channel's
+// recorder filter, linear between the samples, when the filters follow the run). `signal` is
+// filtered in place.
+void ToRecordSteps(const ChannelRun& run, const ChannelSpec& channel, int begin, int end,
+                   std::vector<double>* signal, Eigen::Ref<Eigen::VectorXd> out) {
+  if (run.filtered) FirstOrderLowPass(channel.lowpass_Hz, *run.options.output_times, signal);
+  for (int k = begin; k < end; ++k) {
+    out(k - begin) = (*signal)[static_cast<size_t>(k - run.first) * run.stride];
+  }
+}
+
+size_t LinkSlot(const ChannelRun& run, const ChannelSpec& channel) {
+  return std::find(run.links.begin(), run.links.end(), channel.link_index) - run.links.begin();
+}
+
+// Each channel's derivatives from the sensitivities of its link's torque.
+void ChannelDerivativesFrom(const ChannelRun& run, const std::vector<ChannelSpec>& channels,
+                            int begin, int end, const driveline::SensitivityResult& sensitivities,
+                            std::vector<Eigen::MatrixXd>* derivatives) {
+  const auto count = static_cast<Eigen::Index>(sensitivities.link_torque.size());
+  derivatives->resize(channels.size());
+  std::vector<double> signal(run.samples);
+  for (size_t c = 0; c < channels.size(); ++c) {
+    const auto link = static_cast<Eigen::Index>(LinkSlot(run, channels[c]));
+    auto& derivative = (*derivatives)[c];
+    derivative.resize(end - begin, count);
+    for (Eigen::Index j = 0; j < count; ++j) {
+      const auto column = sensitivities.link_torque[j].col(link);
+      for (size_t k = 0; k < run.samples; ++k) signal[k] = column(static_cast<Eigen::Index>(k));
+      ToRecordSteps(run, channels[c], begin, end, &signal, derivative.col(j));
+    }
+  }
+}
+
+// SimulateChannels, either overload: derivatives when `derivatives`, the run kept when `kept`.
+bool RunChannels(const driveline::Scene& scene, const Oscillogram& record, double origin_s,
+                 const std::vector<ChannelSpec>& channels, int begin, int end,
+                 std::vector<Eigen::VectorXd>* torques, std::string* why,
+                 const std::vector<driveline::SceneParameter>& parameters,
+                 std::vector<Eigen::MatrixXd>* derivatives, std::string* unavailable,
+                 driveline::RecordedRun* kept) {
+  try {
+    ChannelRun run = PrepareChannelRun(record, origin_s, channels, begin, end);
+    driveline::Scene simulated = RunScene(run, scene, channels);
+    const auto& links = run.links;
+    // The plain run streams only the channels' link torques (no sample matrices).
+    std::vector<std::vector<double>> link_signal(links.size(), std::vector<double>(run.samples));
+    driveline::SensitivityResult sensitivities;
+    if (derivatives != nullptr) {
+      sensitivities =
+          driveline::SimulateWithSensitivities(simulated, parameters, run.options, links);
+      *unavailable = sensitivities.unavailable;
+    } else {
+      run.options.keep_samples = false;
+      run.options.sample_sink = [&](const driveline::OutputSample& sample) {
+        for (size_t i = 0; i < links.size(); ++i) {
+          link_signal[i][sample.index] = sample.link_torque_Nm[links[i]];
+        }
+      };
+      if (kept != nullptr) {
+        *kept = driveline::RecordedRun(simulated, run.options);
+        sensitivities.simulation = kept->result();
+      } else {
+        sensitivities.simulation =
+            driveline::Simulate(driveline::Model(std::move(simulated)), run.options);
+      }
+    }
+    const auto& result = sensitivities.simulation;
+    if (!result.summary.success) {
+      *why = result.summary.message;
+      return false;
+    }
+    if (derivatives != nullptr) {
+      for (size_t i = 0; i < links.size(); ++i) {
+        for (size_t j = 0; j < run.samples; ++j) {
+          link_signal[i][j] = result.link_torque_Nm(static_cast<Eigen::Index>(j), links[i]);
+        }
+      }
+    }
+    torques->resize(channels.size());
+    std::vector<double> signal;
+    for (size_t c = 0; c < channels.size(); ++c) {
+      auto& out = (*torques)[c];
+      out.resize(end - begin);
+      signal = link_signal[LinkSlot(run, channels[c])];
+      ToRecordSteps(run, channels[c], begin, end, &signal, out);
+      if (!out.allFinite()) {
+        *why = "non-finite torque";
+        return false;
+      }
+    }
+    if (derivatives != nullptr && unavailable->empty()) {
+      ChannelDerivativesFrom(run, channels, begin, end, sensitivities, derivatives);
+    }
+    return true;
+  } catch (const InputError& error) {
+    *why = error.what();
+    return false;
+  }
+}
+
+}  // namespace
+
 bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, double origin_s,
                       const std::vector<ChannelSpec>& channels, int begin, int end,
-                      std::vector<Eigen::VectorXd>* torques, std::string* why) {
-  return SimulateChannels(scene, record, origin_s, channels, begin, end, torques, why, {}, nullptr,
-                          nullptr);
+                      std::vector<Eigen::VectorXd>* torques, std::string* why,
+                      driveline::RecordedRun* kept) {
+  return RunChannels(scene, record, origin_s, channels, begin, end, torques, why, {}, nullptr,
+                     nullptr, kept);
 }
 
 bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, double origin_s,
@@ -119,108 +287,26 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
                       std::vector<Eigen::VectorXd>* torques, std::string* why,
                       const std::vector<driveline::SceneParameter>& parameters,
                       std::vector<Eigen::MatrixXd>* derivatives, std::string* unavailable) {
+  return RunChannels(scene, record, origin_s, channels, begin, end, torques, why, parameters,
+                     derivatives, unavailable, nullptr);
+}
+
+bool ChannelDerivatives(const driveline::RecordedRun& kept, const Oscillogram& record,
+                        double origin_s, const std::vector<ChannelSpec>& channels, int begin,
+                        int end, const std::vector<driveline::SceneParameter>& parameters,
+                        std::vector<Eigen::MatrixXd>* derivatives, std::string* unavailable,
+                        std::string* why) {
   try {
-    driveline::Scene run = scene;
-    run.duration_s = record.time_s[end - 1] - origin_s;
-    driveline::SimulationOptions options;
-    options.estimate_error = false;
-    // A modelled recorder filter runs inside the model (Link::recorder_lowpass_Hz: exact at the
-    // record's times, at any cutoff) when every channel of a link has the same one. Otherwise
-    // the model is sampled kFilterOversample times per record step from the record's start and
-    // each channel's filter applied as linear between the points.
-    bool shared = true;
-    for (const auto& a : channels) {
-      for (const auto& b : channels) {
-        if (a.link_index == b.link_index && a.lowpass_Hz != b.lowpass_Hz) shared = false;
-      }
-    }
-    const bool filtered = !shared;
-    if (!filtered) {
-      for (const auto& channel : channels) {
-        run.links[channel.link_index].recorder_lowpass_Hz = channel.lowpass_Hz;
-      }
-    }
-    const int first = filtered ? 0 : begin;
-    const int stride = filtered ? kFilterOversample : 1;
-    std::vector<double> times;
-    times.reserve(static_cast<size_t>(end - first - 1) * stride + 1);
-    for (int k = first; k < end; ++k) {
-      times.push_back(record.time_s[k] - origin_s);
-      if (k + 1 == end) break;
-      const double step = (record.time_s[k + 1] - record.time_s[k]) / stride;
-      for (int j = 1; j < stride; ++j) times.push_back(record.time_s[k] - origin_s + j * step);
-    }
-    if (times.front() < 0.0) {
-      throw InputError(record.source + ": record time " + std::to_string(record.time_s[first]) +
-                       " s lies before the time origin " + std::to_string(origin_s) + " s");
-    }
-    // The channels' links: the plain run streams only their torques (no sample matrices).
-    std::vector<int> links;
-    for (const auto& channel : channels) {
-      if (std::find(links.begin(), links.end(), channel.link_index) == links.end()) {
-        links.push_back(channel.link_index);
-      }
-    }
-    std::vector<std::vector<double>> link_signal(links.size(), std::vector<double>(times.size()));
-    const size_t samples = times.size();
-    options.output_times = std::move(times);
-    driveline::SensitivityResult sensitivities;
-    if (derivatives != nullptr) {
-      sensitivities = driveline::SimulateWithSensitivities(run, parameters, options, links);
-      *unavailable = sensitivities.unavailable;
-    } else {
-      options.keep_samples = false;
-      options.sample_sink = [&](const driveline::OutputSample& sample) {
-        for (size_t i = 0; i < links.size(); ++i) {
-          link_signal[i][sample.index] = sample.link_torque_Nm[links[i]];
-        }
-      };
-      sensitivities.simulation = driveline::Simulate(driveline::Model(std::move(run)), options);
-    }
-    const auto& result = sensitivities.simulation;
-    if (!result.summary.success) {
-      *why = result.summary.message;
+    const ChannelRun run = PrepareChannelRun(record, origin_s, channels, begin, end);
+    const driveline::SensitivityResult sensitivities =
+        driveline::SimulateWithSensitivities(kept, parameters, run.links);
+    if (!sensitivities.simulation.summary.success) {
+      *why = sensitivities.simulation.summary.message;
       return false;
     }
-    const std::vector<double>& time = *options.output_times;
-    if (derivatives != nullptr) {
-      for (size_t i = 0; i < links.size(); ++i) {
-        for (size_t j = 0; j < samples; ++j) {
-          link_signal[i][j] = result.link_torque_Nm(static_cast<Eigen::Index>(j), links[i]);
-        }
-      }
-    }
-    const bool with_derivatives = derivatives != nullptr && unavailable->empty();
-    const int count = static_cast<int>(parameters.size());
-    torques->resize(channels.size());
-    if (with_derivatives) derivatives->resize(channels.size());
-    std::vector<double> signal(samples);
-    // A signal through the channel's recorder filter (linear between the samples), at the
-    // record steps in [begin, end).
-    const auto filter = [&](const ChannelSpec& channel, Eigen::Ref<Eigen::VectorXd> out) {
-      if (filtered) FirstOrderLowPass(channel.lowpass_Hz, time, &signal);
-      for (int k = begin; k < end; ++k)
-        out(k - begin) = signal[static_cast<size_t>(k - first) * stride];
-    };
-    for (size_t c = 0; c < channels.size(); ++c) {
-      const size_t link =
-          std::find(links.begin(), links.end(), channels[c].link_index) - links.begin();
-      auto& out = (*torques)[c];
-      out.resize(end - begin);
-      signal = link_signal[link];
-      filter(channels[c], out);
-      if (!out.allFinite()) {
-        *why = "non-finite torque";
-        return false;
-      }
-      if (!with_derivatives) continue;
-      auto& derivative = (*derivatives)[c];
-      derivative.resize(end - begin, count);
-      for (int j = 0; j < count; ++j) {
-        const auto column = sensitivities.link_torque[j].col(static_cast<Eigen::Index>(link));
-        for (size_t k = 0; k < samples; ++k) signal[k] = column(static_cast<Eigen::Index>(k));
-        filter(channels[c], derivative.col(j));
-      }
+    *unavailable = sensitivities.unavailable;
+    if (unavailable->empty()) {
+      ChannelDerivativesFrom(run, channels, begin, end, sensitivities, derivatives);
     }
     return true;
   } catch (const InputError& error) {

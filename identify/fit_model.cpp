@@ -127,28 +127,61 @@ std::string FitModel::NuisanceName(int b, bool gain) const {
   return name;
 }
 
-bool FitModel::Torques(const double* u, std::vector<Eigen::VectorXd>* m, int only_record) const {
+driveline::Scene FitModel::RecordScene(int r, const double* u, const std::vector<int>& frozen,
+                                       std::vector<driveline::SceneParameter>* parameters,
+                                       std::vector<int>* slots) const {
+  driveline::Scene scene = scene_;
+  for (int s = 0; s < this->parameters(); ++s) {
+    if (slots_[s].record < 0 || slots_[s].record == r) {
+      free(s).parameter.Set(Physical(s, u[s]), &scene);
+      if (parameters == nullptr) continue;
+      if (std::find(frozen.begin(), frozen.end(), s) != frozen.end()) continue;
+      parameters->push_back(free(s).parameter);
+      slots->push_back(s);
+    }
+  }
+  return scene;
+}
+
+void FitModel::CountSimulation() const {
+  const long simulations = ++*simulations_;
+  if (progress_) {
+    const std::lock_guard lock(*progress_mutex_);
+    progress_(activity_, simulations);
+  }
+}
+
+void FitModel::ToUnits(int r, const double* u, const std::vector<int>& slots,
+                       const std::vector<Eigen::MatrixXd>& derivatives,
+                       std::vector<Eigen::MatrixXd>* dm) const {
+  const size_t channels = config_.channels.size();
+  for (size_t c = 0; c < channels; ++c) {
+    // d/du = d/dp · dp/du per slot.
+    Eigen::MatrixXd& out = (*dm)[r * channels + c];
+    out.setZero(derivatives[c].rows(), this->parameters());
+    for (size_t j = 0; j < slots.size(); ++j) {
+      out.col(slots[j]) = derivatives[c].col(static_cast<int>(j)) *
+                          slots_[slots[j]].map.PhysicalPerUnit(u[slots[j]]);
+    }
+  }
+}
+
+bool FitModel::Torques(const double* u, std::vector<Eigen::VectorXd>* m, int only_record,
+                       std::vector<driveline::RecordedRun>* kept) const {
   m->resize(blocks_.size());
+  if (kept != nullptr) kept->resize(records_.size());
   std::vector<Eigen::VectorXd> torques;
   const size_t channels = config_.channels.size();
   for (int r = 0; r < static_cast<int>(records_.size()); ++r) {
     if (only_record >= 0 && r != only_record) continue;
-    driveline::Scene scene = scene_;
-    for (int s = 0; s < parameters(); ++s) {
-      if (slots_[s].record < 0 || slots_[s].record == r) {
-        free(s).parameter.Set(Physical(s, u[s]), &scene);
-      }
-    }
+    const driveline::Scene scene = RecordScene(r, u, {}, nullptr, nullptr);
     // Blocks of a record are consecutive, in config channel order.
     const Block& first = blocks_[r * channels];
-    const long simulations = ++*simulations_;
-    if (progress_) {
-      const std::lock_guard lock(*progress_mutex_);
-      progress_(activity_, simulations);
-    }
+    CountSimulation();
     std::string why;
     if (!SimulateChannels(scene, records_[r], TimeOrigin(config_, records_[r]), config_.channels,
-                          first.begin, first.end, &torques, &why)) {
+                          first.begin, first.end, &torques, &why,
+                          kept != nullptr ? &(*kept)[r] : nullptr)) {
       last_failure_ = records_.size() > 1 ? records_[r].source + ": " + why : why;
       return false;
     }
@@ -167,23 +200,11 @@ bool FitModel::TorquesWithDerivatives(const double* u, std::vector<Eigen::Vector
   std::vector<Eigen::MatrixXd> derivatives;
   const size_t channels = config_.channels.size();
   for (int r = 0; r < static_cast<int>(records_.size()); ++r) {
-    driveline::Scene scene = scene_;
     std::vector<driveline::SceneParameter> scene_parameters;
     std::vector<int> slots;  // the slot of each scene parameter
-    for (int s = 0; s < parameters(); ++s) {
-      if (slots_[s].record < 0 || slots_[s].record == r) {
-        free(s).parameter.Set(Physical(s, u[s]), &scene);
-        if (std::find(frozen.begin(), frozen.end(), s) != frozen.end()) continue;
-        scene_parameters.push_back(free(s).parameter);
-        slots.push_back(s);
-      }
-    }
+    const driveline::Scene scene = RecordScene(r, u, frozen, &scene_parameters, &slots);
     const Block& first = blocks_[r * channels];
-    const long simulations = ++*simulations_;
-    if (progress_) {
-      const std::lock_guard lock(*progress_mutex_);
-      progress_(activity_, simulations);
-    }
+    CountSimulation();
     std::string why, unavailable;
     if (!SimulateChannels(scene, records_[r], TimeOrigin(config_, records_[r]), config_.channels,
                           first.begin, first.end, &torques, &why, scene_parameters, &derivatives,
@@ -192,18 +213,34 @@ bool FitModel::TorquesWithDerivatives(const double* u, std::vector<Eigen::Vector
       return false;
     }
     if (!unavailable.empty()) *available = false;
-    for (size_t c = 0; c < torques.size(); ++c) {
-      const size_t b = r * channels + c;
-      (*m)[b] = std::move(torques[c]);
-      if (!*available) continue;
-      // d/du = d/dp · dp/du per slot.
-      Eigen::MatrixXd& out = (*dm)[b];
-      out.setZero((*m)[b].size(), this->parameters());
-      for (size_t j = 0; j < slots.size(); ++j) {
-        out.col(slots[j]) = derivatives[c].col(static_cast<int>(j)) *
-                            slots_[slots[j]].map.PhysicalPerUnit(u[slots[j]]);
-      }
+    for (size_t c = 0; c < torques.size(); ++c) (*m)[r * channels + c] = std::move(torques[c]);
+    if (*available) ToUnits(r, u, slots, derivatives, dm);
+  }
+  return true;
+}
+
+bool FitModel::DerivativesAlong(const std::vector<driveline::RecordedRun>& kept, const double* u,
+                                std::vector<Eigen::MatrixXd>* dm, bool* available,
+                                const std::vector<int>& frozen) const {
+  dm->resize(blocks_.size());
+  *available = true;
+  std::vector<Eigen::MatrixXd> derivatives;
+  const size_t channels = config_.channels.size();
+  for (int r = 0; r < static_cast<int>(records_.size()); ++r) {
+    std::vector<driveline::SceneParameter> scene_parameters;
+    std::vector<int> slots;
+    RecordScene(r, u, frozen, &scene_parameters, &slots);  // the scene is the kept run's
+    const Block& first = blocks_[r * channels];
+    CountSimulation();
+    std::string why, unavailable;
+    if (!ChannelDerivatives(kept[r], records_[r], TimeOrigin(config_, records_[r]),
+                            config_.channels, first.begin, first.end, scene_parameters,
+                            &derivatives, &unavailable, &why)) {
+      last_failure_ = records_.size() > 1 ? records_[r].source + ": " + why : why;
+      return false;
     }
+    if (!unavailable.empty()) *available = false;
+    if (*available) ToUnits(r, u, slots, derivatives, dm);
   }
   return true;
 }
@@ -434,8 +471,14 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
   if (want_jacobian && derivatives_ == Derivatives::kSensitivity) {
     std::vector<Eigen::MatrixXd> dm;
     bool available = false;
-    if (!model_.TorquesWithDerivatives(u.data(), &m, &dm, &available, frozen_) ||
-        !model_.Project(m, &r)) {
+    if (!kept_point_.empty() && std::equal(kept_point_.begin(), kept_point_.end(), parameters[0])) {
+      // The point of the latest plain evaluation (a step Levenberg–Marquardt just accepted).
+      kept_point_.clear();
+      m = std::move(kept_m_);
+      r = std::move(kept_r_);
+      if (!model_.DerivativesAlong(kept_runs_, u.data(), &dm, &available, frozen_)) return false;
+    } else if (!model_.TorquesWithDerivatives(u.data(), &m, &dm, &available, frozen_) ||
+               !model_.Project(m, &r)) {
       return false;
     }
     Eigen::Map<Eigen::VectorXd>(residuals, n) = r;
@@ -460,8 +503,20 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
     }
     // Not available here (a grazing event, a degenerate switch): forward differences.
   } else {
-    if (!model_.ProjectedResiduals(u.data(), &r, nullptr, &m)) return false;
+    // A plain evaluation keeps its runs for sensitivities at the same point (with sensitivities
+    // this branch is taken without a Jacobian).
+    const bool keep = derivatives_ == Derivatives::kSensitivity;
+    kept_point_.clear();
+    if (!model_.Torques(u.data(), &m, -1, keep ? &kept_runs_ : nullptr) || !model_.Project(m, &r)) {
+      return false;
+    }
     Eigen::Map<Eigen::VectorXd>(residuals, n) = r;
+    if (keep) {
+      kept_point_.assign(parameters[0], parameters[0] + p);
+      kept_m_ = std::move(m);
+      kept_r_ = std::move(r);
+      return true;
+    }
   }
   if (!want_jacobian) return true;
   Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> jac(

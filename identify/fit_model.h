@@ -108,7 +108,9 @@ class FitModel {
 
   // Simulated link torque of every block for scene parameters u (unit coordinates); with
   // `only_record` ≥ 0 only that record's blocks are simulated (the others are left as they are).
-  bool Torques(const double* u, std::vector<Eigen::VectorXd>* m, int only_record = -1) const;
+  // With `kept`, each record's exact-solver run is kept there (kept[r]) for DerivativesAlong.
+  bool Torques(const double* u, std::vector<Eigen::VectorXd>* m, int only_record = -1,
+               std::vector<driveline::RecordedRun>* kept = nullptr) const;
   // Torques as Torques does, with their derivatives over the unit coordinates: dm[b] is block b's
   // samples × parameters() (zero columns for slots of other records and for `frozen` slots, which
   // are not computed). False when a simulation fails; *available false (dm unset) when the
@@ -116,6 +118,11 @@ class FitModel {
   bool TorquesWithDerivatives(const double* u, std::vector<Eigen::VectorXd>* m,
                               std::vector<Eigen::MatrixXd>* dm, bool* available,
                               const std::vector<int>& frozen = {}) const;
+  // The derivatives TorquesWithDerivatives gives, along the runs `kept` by Torques at the same u
+  // (every record's), without running the solver again.
+  bool DerivativesAlong(const std::vector<driveline::RecordedRun>& kept, const double* u,
+                        std::vector<Eigen::MatrixXd>* dm, bool* available,
+                        const std::vector<int>& frozen = {}) const;
   // The derivative of block b's projected residual w_b (g m + o − y) over the scene parameters,
   // the gain and offset following m (solved again: their change where they are inside their
   // bounds), for torque m with derivatives dm (samples × parameters) and its solution n.
@@ -145,6 +152,18 @@ class FitModel {
                     Eigen::MatrixXd* jacobian) const;
 
  private:
+  // Record r's scene at u; with `parameters`, also the scene parameters of its slots that are not
+  // `frozen`, and the slot of each.
+  driveline::Scene RecordScene(int r, const double* u, const std::vector<int>& frozen,
+                               std::vector<driveline::SceneParameter>* parameters,
+                               std::vector<int>* slots) const;
+  // One more simulation: the count, and the progress callback.
+  void CountSimulation() const;
+  // Record r's channel derivatives over its scene parameters (those of `slots`) into dm, over the
+  // unit coordinates.
+  void ToUnits(int r, const double* u, const std::vector<int>& slots,
+               const std::vector<Eigen::MatrixXd>& derivatives,
+               std::vector<Eigen::MatrixXd>* dm) const;
   int StageEnd(const Block& b, double divisor) const;
   double OnsetTime(int r) const;
 
@@ -197,6 +216,13 @@ class ProjectedResidual : public ceres::CostFunction {
   mutable double remaining_step_se_ = std::numeric_limits<double>::quiet_NaN();
   mutable Eigen::MatrixXd precision_;
   mutable std::vector<double> jacobian_point_;
+  // With sensitivities, the latest plain evaluation (not yet followed by a Jacobian there): its
+  // point φ, torques, residuals and each record's run, which the Jacobian that
+  // Levenberg–Marquardt asks for after accepting that point follows instead of running again.
+  mutable std::vector<double> kept_point_;
+  mutable std::vector<Eigen::VectorXd> kept_m_;
+  mutable Eigen::VectorXd kept_r_;
+  mutable std::vector<driveline::RecordedRun> kept_runs_;
   void Measure(const Eigen::Ref<const Eigen::MatrixXd>& jacobian, const Eigen::VectorXd& residuals,
                const double* phi) const;
 };

@@ -12,6 +12,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <stdexcept>
 
 #include "driveline/hybrid_driver.h"
 #include "millkit/io/input_error.h"
@@ -695,13 +696,102 @@ class SensitivityPass final : public HybridObserver {
   std::string unavailable_;
 };
 
-}  // namespace
+// Every call a run makes to its observer, kept in order to be made again to another observer
+// (RecordedRun): the states in one array, the phases as they came.
+class StopTape final : public HybridObserver {
+ public:
+  void Started(const Eigen::VectorXd& z0, const Phases& phases) override {
+    calls_.push_back(Call::kStarted);
+    Keep(z0);
+    phases_.push_back(phases);
+  }
+  void LegEnded(double elapsed, const Phases& phases, const Eigen::VectorXd& z,
+                bool blind) override {
+    calls_.push_back(blind ? Call::kBlindLeg : Call::kLeg);
+    numbers_.push_back(elapsed);
+    phases_.push_back(phases);
+    Keep(z);
+  }
+  void Switched(const Phases& before, const Phases& after,
+                const std::vector<Model::KnownSide>& crossed) override {
+    calls_.push_back(Call::kSwitched);
+    phases_.push_back(before);
+    phases_.push_back(after);
+    crossed_.push_back(crossed);
+  }
+  void BreakpointApplied(double breakpoint, const Eigen::VectorXd& z) override {
+    calls_.push_back(Call::kBreakpoint);
+    numbers_.push_back(breakpoint);
+    Keep(z);
+  }
+  void Recorded(int k, const Phases& phases) override {
+    calls_.push_back(Call::kRecorded);
+    samples_.push_back(k);
+    phases_.push_back(phases);
+  }
 
-SensitivityResult SimulateWithSensitivities(const Scene& scene,
-                                            const std::vector<SceneParameter>& parameters,
-                                            const SimulationOptions& options,
-                                            const std::vector<int>& links) {
+  void Replay(HybridObserver* observer) const {
+    size_t number = 0, phase = 0, state = 0, size = 0, crossed = 0, sample = 0;
+    Eigen::VectorXd z;
+    const auto next_state = [&]() -> const Eigen::VectorXd& {
+      z = Eigen::Map<const Eigen::VectorXd>(states_.data() + state, sizes_[size]);
+      state += static_cast<size_t>(sizes_[size++]);
+      return z;
+    };
+    for (const Call call : calls_) {
+      switch (call) {
+        case Call::kStarted: {
+          const Eigen::VectorXd& z0 = next_state();
+          observer->Started(z0, phases_[phase++]);
+          break;
+        }
+        case Call::kLeg:
+        case Call::kBlindLeg: {
+          const double elapsed = numbers_[number++];
+          const Phases& phases = phases_[phase++];
+          observer->LegEnded(elapsed, phases, next_state(), call == Call::kBlindLeg);
+          break;
+        }
+        case Call::kSwitched:
+          observer->Switched(phases_[phase], phases_[phase + 1], crossed_[crossed++]);
+          phase += 2;
+          break;
+        case Call::kBreakpoint: {
+          const double breakpoint = numbers_[number++];
+          observer->BreakpointApplied(breakpoint, next_state());
+          break;
+        }
+        case Call::kRecorded:
+          observer->Recorded(samples_[sample++], phases_[phase++]);
+          break;
+      }
+    }
+  }
+
+ private:
+  enum class Call : char { kStarted, kLeg, kBlindLeg, kSwitched, kBreakpoint, kRecorded };
+  void Keep(const Eigen::VectorXd& z) {
+    states_.insert(states_.end(), z.data(), z.data() + z.size());
+    sizes_.push_back(z.size());
+  }
+
+  std::vector<Call> calls_;
+  std::vector<double> numbers_;  // leg lengths and breakpoints, in call order
+  std::vector<double> states_;   // every state, one after the other
+  std::vector<Eigen::Index> sizes_;
+  std::vector<Phases> phases_;
+  std::vector<std::vector<Model::KnownSide>> crossed_;
+  std::vector<int> samples_;
+};
+
+// The sensitivities of a run of `model` with options `run` (validated, exact solver): the solver
+// runs with the pass attached, or (`kept`, with its `result`) the pass follows a kept run.
+SensitivityResult Sensitivities(const Model& model, const SimulationOptions& run,
+                                const std::vector<SceneParameter>& parameters,
+                                const std::vector<int>& links, const StopTape* kept,
+                                const SimulationResult* kept_result) {
   SensitivityResult result;
+  const Scene& scene = model.scene();
   const int scene_links = static_cast<int>(scene.links.size());
   for (const int l : links) {
     if (l < 0 || l >= scene_links) {
@@ -714,13 +804,6 @@ SensitivityResult SimulateWithSensitivities(const Scene& scene,
     recorded.resize(scene_links);
     for (int l = 0; l < scene_links; ++l) recorded[l] = l;
   }
-  SimulationOptions run = options;
-  run.solver = SolverKind::kExact;
-  run.keep_samples = true;
-  run.sample_sink = nullptr;
-  const Model model(scene);
-  run.Validate(model.scene());
-
   std::vector<ParameterModels> models;
   for (const SceneParameter& parameter : parameters) {
     ParameterModels entry;
@@ -756,17 +839,24 @@ SensitivityResult SimulateWithSensitivities(const Scene& scene,
     if (!result.unavailable.empty()) break;
     models.push_back(std::move(entry));
   }
-  const std::unique_ptr<ModeIntegrator> integrator = MakeExactIntegrator(model, run);
+  // The run, with `observer` told every stop.
+  const auto run_along = [&](HybridObserver* observer) {
+    if (kept != nullptr) {
+      if (observer != nullptr) kept->Replay(observer);
+      return *kept_result;
+    }
+    const std::unique_ptr<ModeIntegrator> integrator = MakeExactIntegrator(model, run);
+    return RunHybrid(model, run, SolverOf(SolverKind::kExact).name, integrator.get(), observer);
+  };
   if (!result.unavailable.empty()) {
-    result.simulation = RunHybrid(model, run, SolverOf(SolverKind::kExact).name, integrator.get());
+    result.simulation = run_along(nullptr);
     return result;
   }
   const double step = ExactStepLength(model, run);
   const int samples = OutputGrid(model.reduced_scene(), run).size();
   SensitivityPass pass(model, std::move(models), ExactScale(model, step), step, samples,
                        run.initial_state.has_value(), std::move(recorded));
-  result.simulation =
-      RunHybrid(model, run, SolverOf(SolverKind::kExact).name, integrator.get(), &pass);
+  result.simulation = run_along(&pass);
   if (!result.simulation.summary.success) {
     result.unavailable = "the run failed: " + result.simulation.summary.message;
   } else {
@@ -774,6 +864,60 @@ SensitivityResult SimulateWithSensitivities(const Scene& scene,
   }
   if (result.unavailable.empty()) result.link_torque = pass.TakeOutputs();
   return result;
+}
+
+}  // namespace
+
+SensitivityResult SimulateWithSensitivities(const Scene& scene,
+                                            const std::vector<SceneParameter>& parameters,
+                                            const SimulationOptions& options,
+                                            const std::vector<int>& links) {
+  SimulationOptions run = options;
+  run.solver = SolverKind::kExact;
+  run.keep_samples = true;
+  run.sample_sink = nullptr;
+  const Model model(scene);
+  run.Validate(model.scene());
+  return Sensitivities(model, run, parameters, links, nullptr, nullptr);
+}
+
+struct RecordedRun::Kept {
+  Kept(const Scene& scene, const SimulationOptions& given) : model(scene), options(given) {}
+  Model model;
+  SimulationOptions options;
+  SimulationResult result;
+  StopTape stops;
+};
+
+RecordedRun::RecordedRun() = default;
+RecordedRun::~RecordedRun() = default;
+RecordedRun::RecordedRun(RecordedRun&&) noexcept = default;
+RecordedRun& RecordedRun::operator=(RecordedRun&&) noexcept = default;
+
+RecordedRun::RecordedRun(const Scene& scene, const SimulationOptions& options)
+    : kept_(std::make_unique<Kept>(scene, options)) {
+  Kept& kept = *kept_;
+  kept.options.solver = SolverKind::kExact;
+  kept.options.Validate(kept.model.scene());
+  const std::unique_ptr<ModeIntegrator> integrator = MakeExactIntegrator(kept.model, kept.options);
+  kept.result = RunHybrid(kept.model, kept.options, SolverOf(SolverKind::kExact).name,
+                          integrator.get(), &kept.stops);
+  // The caller's callbacks belong to the run that is over.
+  kept.options.sample_sink = nullptr;
+  kept.options.progress = nullptr;
+}
+
+const SimulationResult& RecordedRun::result() const {
+  if (kept_ == nullptr) throw std::logic_error("RecordedRun::result: no run is kept");
+  return kept_->result;
+}
+
+SensitivityResult SimulateWithSensitivities(const RecordedRun& run,
+                                            const std::vector<SceneParameter>& parameters,
+                                            const std::vector<int>& links) {
+  if (run.empty()) throw std::logic_error("SimulateWithSensitivities: no run is kept");
+  const RecordedRun::Kept& kept = *run.kept_;
+  return Sensitivities(kept.model, kept.options, parameters, links, &kept.stops, &kept.result);
 }
 
 }  // namespace millkit::driveline

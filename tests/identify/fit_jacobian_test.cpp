@@ -149,24 +149,72 @@ TEST_CASE("A fit's plain and sensitivity runs give the same channel samples", "[
   }
 }
 
+// The bundled two-spindle record's first 0.3 s (`end` its sample count) with its scene and config;
+// `mixed`: its channels and one more on the first channel's link with half its filter's cutoff
+// (two filters on one link: the oversampled path); the config's free scene parameters.
+struct BundledWindow {
+  driveline::Scene scene =
+      driveline::LoadScene(testing::SourcePath("datasets/scenes/mill5_bite.toml"));
+  identify::Oscillogram record =
+      identify::LoadOscillogram(testing::SourcePath("datasets/records/mill5_two_spindles.csv"));
+  identify::FitConfig config = identify::LoadFitConfig(
+      testing::SourcePath("datasets/records/mill5_two_spindles.fit.toml"), record, scene);
+  std::vector<identify::ChannelSpec> mixed;
+  int end = 0;
+  std::vector<driveline::SceneParameter> parameters;
+
+  BundledWindow() : mixed(config.channels) {
+    mixed.push_back(mixed.front());
+    mixed.back().lowpass_Hz = 0.5 * mixed.front().lowpass_Hz;
+    end = static_cast<int>(std::upper_bound(record.time_s.begin(), record.time_s.end(), 0.3) -
+                           record.time_s.begin());
+    for (const auto& free : config.free) parameters.push_back(free.parameter);
+  }
+};
+
+// A fit's plain run keeps its stops; the derivatives along them (ChannelDerivatives) are those of a
+// sensitivity run to the bit, with the filter inside the model and applied after an oversampled
+// run (two channels of one link with different filters), on a window that starts after the record.
+TEST_CASE("A channel's derivatives along a kept plain run are those of a sensitivity run",
+          "[sensitivity]") {
+  const BundledWindow bundled;
+  const auto& [scene, record, config, mixed, end, parameters] = bundled;
+  for (const auto& channels : {config.channels, mixed}) {
+    for (const int begin : {0, 100}) {
+      std::vector<Eigen::VectorXd> plain, kept_torques, with_derivatives;
+      std::vector<Eigen::MatrixXd> derivatives, along;
+      std::string why, unavailable, along_unavailable;
+      driveline::RecordedRun kept;
+      REQUIRE(identify::SimulateChannels(scene, record, 0.0, channels, begin, end, &plain, &why));
+      REQUIRE(identify::SimulateChannels(scene, record, 0.0, channels, begin, end, &kept_torques,
+                                         &why, &kept));
+      REQUIRE(identify::SimulateChannels(scene, record, 0.0, channels, begin, end,
+                                         &with_derivatives, &why, parameters, &derivatives,
+                                         &unavailable));
+      REQUIRE(identify::ChannelDerivatives(kept, record, 0.0, channels, begin, end, parameters,
+                                           &along, &along_unavailable, &why));
+      REQUIRE(unavailable.empty());
+      CHECK(along_unavailable.empty());
+      REQUIRE(along.size() == channels.size());
+      for (size_t c = 0; c < channels.size(); ++c) {
+        CHECK(kept_torques[c] == plain[c]);
+        CHECK(kept_torques[c] == with_derivatives[c]);
+        CHECK(along[c].rows() == end - begin);
+        CHECK(along[c].cols() == static_cast<Eigen::Index>(parameters.size()));
+        CHECK(along[c] == derivatives[c]);
+      }
+    }
+  }
+}
+
 // The recorder filter inside the model (exact at the record's times) and on the model sampled
 // kFilterOversample times per record step (the path taken when two channels of one link have
 // different filters, linear between the points) give the same channel samples and derivatives to
 // that interpolation's error.
 TEST_CASE("A channel's recorder filter in the model agrees with the oversampled filter",
           "[sensitivity]") {
-  const auto scene = driveline::LoadScene(testing::SourcePath("datasets/scenes/mill5_bite.toml"));
-  const auto record =
-      identify::LoadOscillogram(testing::SourcePath("datasets/records/mill5_two_spindles.csv"));
-  const auto config = identify::LoadFitConfig(
-      testing::SourcePath("datasets/records/mill5_two_spindles.fit.toml"), record, scene);
-  std::vector<identify::ChannelSpec> mixed = config.channels;
-  mixed.push_back(mixed.front());
-  mixed.back().lowpass_Hz = 0.5 * mixed.front().lowpass_Hz;
-  const int end = static_cast<int>(
-      std::upper_bound(record.time_s.begin(), record.time_s.end(), 0.3) - record.time_s.begin());
-  std::vector<driveline::SceneParameter> parameters;
-  for (const auto& free : config.free) parameters.push_back(free.parameter);
+  const BundledWindow bundled;
+  const auto& [scene, record, config, mixed, end, parameters] = bundled;
   std::vector<Eigen::VectorXd> exact, sampled;
   std::vector<Eigen::MatrixXd> exact_d, sampled_d;
   std::string why, unavailable;

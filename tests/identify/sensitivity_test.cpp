@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <stdexcept>
 #include <string>
 
 #include "identify/random_line.h"
@@ -309,6 +310,72 @@ TEST_CASE("Sensitivities of chosen links are those links' columns", "[sensitivit
                   InputError);
   CHECK_THROWS_AS(driveline::SimulateWithSensitivities(scene, parameters, options, {-1}),
                   InputError);
+}
+
+// A fit evaluates its misfit at a point and then asks for the derivatives there: the sensitivities
+// along the kept run are those of a run with the pass attached, to the last bit, under every
+// contact law (events whose right-hand side jumps), with a recorder low-pass, with a step load's
+// breakpoint and a bite time among the parameters; a failed run's reason comes through the same.
+TEST_CASE("Sensitivities along a kept run are those of a run with the pass to the bit",
+          "[sensitivity]") {
+  std::vector<driveline::Scene> scenes;
+  for (const char* name : {"mill5_bite", "drive_pi", "two_mass_step"}) {
+    scenes.push_back(driveline::LoadScene(std::string(MILLKIT_SOURCE_DIR) + "/datasets/scenes/" +
+                                          name + ".toml"));
+  }
+  for (unsigned long seed = 1; seed <= 6; ++seed) {
+    driveline::Scene scene = identify::MakeRandomLineCase(seed).truth;
+    scene.duration_s = 0.15;
+    if (seed % 2 == 0) scene.links.back().recorder_lowpass_Hz = 0.3 * scene.sample_rate_Hz;
+    scenes.push_back(std::move(scene));
+  }
+  int compared = 0, jumps = 0;
+  for (const auto& base : scenes) {
+    for (const auto law : kLaws) {
+      driveline::Scene scene = base;
+      scene.contact = law;
+      const auto parameters = ParametersOf(scene);
+      driveline::SimulationOptions options;
+      options.estimate_error = false;
+      const std::vector<int> links{0, static_cast<int>(scene.links.size()) - 1};
+      const auto direct = driveline::SimulateWithSensitivities(scene, parameters, options, links);
+      options.keep_samples = false;  // as a fit's plain run: the kept run need not keep samples
+      const driveline::RecordedRun kept(scene, options);
+      REQUIRE_FALSE(kept.empty());
+      const auto along = driveline::SimulateWithSensitivities(kept, parameters, links);
+      INFO(scene.name << ", law " << static_cast<int>(law));
+      CHECK(along.unavailable == direct.unavailable);
+      CHECK(along.simulation.summary.events == direct.simulation.summary.events);
+      CHECK(along.simulation.summary.event_times_s == direct.simulation.summary.event_times_s);
+      CHECK(along.simulation.peak_abs_torque_Nm == direct.simulation.peak_abs_torque_Nm);
+      CHECK(along.simulation.link_torque_Nm.size() == 0);  // the kept run's samples: none
+      REQUIRE(along.link_torque.size() == direct.link_torque.size());
+      for (size_t j = 0; j < along.link_torque.size(); ++j) {
+        CHECK(along.link_torque[j] == direct.link_torque[j]);
+      }
+      if (direct.unavailable.empty()) ++compared;
+      if (law != driveline::ContactLaw::kLimited && direct.simulation.summary.events > 0) ++jumps;
+    }
+  }
+  CHECK(compared >= 20);
+  CHECK(jumps >= 10);
+
+  // A run that fails (too many events) is kept with its reason.
+  auto scene = scenes.front();
+  driveline::SimulationOptions options;
+  options.estimate_error = false;
+  options.max_events = 1;
+  const auto parameters = ParametersOf(scene);
+  const auto direct = driveline::SimulateWithSensitivities(scene, parameters, options);
+  const driveline::RecordedRun kept(scene, options);
+  const auto along = driveline::SimulateWithSensitivities(kept, parameters);
+  CHECK_FALSE(direct.simulation.summary.success);
+  CHECK_FALSE(along.simulation.summary.success);
+  CHECK(along.unavailable == direct.unavailable);
+  CHECK(along.unavailable.rfind("the run failed: more than max_events", 0) == 0);
+  CHECK_THROWS_AS(driveline::SimulateWithSensitivities(kept, parameters, {7}), InputError);
+  CHECK_THROWS_AS(driveline::SimulateWithSensitivities(driveline::RecordedRun(), parameters),
+                  std::logic_error);
 }
 
 }  // namespace

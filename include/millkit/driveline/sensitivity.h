@@ -27,6 +27,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -56,6 +57,41 @@ struct SensitivityResult {
 SensitivityResult SimulateWithSensitivities(const Scene& scene,
                                             const std::vector<SceneParameter>& parameters,
                                             const SimulationOptions& options,
+                                            const std::vector<int>& links = {});
+
+// An exact-solver run that keeps its stops (each leg's length and end state, each event,
+// breakpoint and output time), so that the sensitivities to any scene parameters can follow it
+// later without running the solver again: a fit evaluates its misfit at a trial point and, when
+// it accepts the point, wants the misfit's derivatives there.
+class RecordedRun {
+ public:
+  RecordedRun();  // holds no run
+  // Runs `scene` with the exact solver as SimulateExact does (options.solver is ignored; the
+  // samples are kept or streamed as the options say, and options.sample_sink and
+  // options.progress are called during this run only). Throws InputError for an invalid scene or
+  // options, as Simulate does.
+  RecordedRun(const Scene& scene, const SimulationOptions& options);
+  ~RecordedRun();
+  RecordedRun(RecordedRun&&) noexcept;
+  RecordedRun& operator=(RecordedRun&&) noexcept;
+
+  bool empty() const { return kept_ == nullptr; }
+  // The run's result (requires !empty()).
+  const SimulationResult& result() const;
+
+ private:
+  struct Kept;
+  std::unique_ptr<Kept> kept_;
+  friend SensitivityResult SimulateWithSensitivities(const RecordedRun& run,
+                                                     const std::vector<SceneParameter>& parameters,
+                                                     const std::vector<int>& links);
+};
+
+// The sensitivities along a kept run (not empty), to the bit what SimulateWithSensitivities gives
+// for the run's scene and options, without running the solver: `simulation` is a copy of
+// run.result(), whose samples are there only if the run kept them.
+SensitivityResult SimulateWithSensitivities(const RecordedRun& run,
+                                            const std::vector<SceneParameter>& parameters,
                                             const std::vector<int>& links = {});
 
 }  // namespace millkit::driveline

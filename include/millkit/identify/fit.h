@@ -53,6 +53,7 @@
 #include <vector>
 
 #include "millkit/driveline/scene.h"
+#include "millkit/driveline/sensitivity.h"
 #include "millkit/identify/fit_config.h"
 #include "millkit/identify/oscillogram.h"
 
@@ -295,10 +296,12 @@ double TimeOrigin(const FitConfig& config, const Oscillogram& record);
 
 // Simulated torque of each channel's link at the record times in [begin, end), the model's time
 // being record time − origin_s; the scene's parameters as given. Returns false with a reason when
-// the scene is invalid or the solver fails.
+// the scene is invalid or the solver fails. With `kept`, the exact solver's run is kept there for
+// ChannelDerivatives.
 bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, double origin_s,
                       const std::vector<ChannelSpec>& channels, int begin, int end,
-                      std::vector<Eigen::VectorXd>* torques, std::string* why);
+                      std::vector<Eigen::VectorXd>* torques, std::string* why,
+                      driveline::RecordedRun* kept = nullptr);
 // The same with each channel's derivatives over `parameters` (derivatives[c]: samples ×
 // parameters), by the exact solver's forward sensitivities (millkit/driveline/sensitivity.h).
 // When they cannot be computed (a grazing event, a degenerate switch) the torques are still
@@ -308,5 +311,13 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
                       std::vector<Eigen::VectorXd>* torques, std::string* why,
                       const std::vector<driveline::SceneParameter>& parameters,
                       std::vector<Eigen::MatrixXd>* derivatives, std::string* unavailable);
+// The derivatives the call above gives, along a run `kept` by the first SimulateChannels with the
+// same record, origin_s, channels, begin and end, without running the solver again (the torques
+// are that call's). False with a reason when the kept run failed.
+bool ChannelDerivatives(const driveline::RecordedRun& kept, const Oscillogram& record,
+                        double origin_s, const std::vector<ChannelSpec>& channels, int begin,
+                        int end, const std::vector<driveline::SceneParameter>& parameters,
+                        std::vector<Eigen::MatrixXd>* derivatives, std::string* unavailable,
+                        std::string* why);
 
 }  // namespace millkit::identify
