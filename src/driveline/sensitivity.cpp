@@ -13,6 +13,7 @@
 #include <map>
 #include <memory>
 #include <stdexcept>
+#include <type_traits>
 
 #include "driveline/hybrid_driver.h"
 #include "millkit/io/input_error.h"
@@ -697,16 +698,24 @@ class SensitivityPass final : public HybridObserver {
 };
 
 // Every call a run makes to its observer, kept in order to be made again to another observer
-// (RecordedRun): the states in one array, the phases as they came.
+// (RecordedRun): the states in one array, the phases as they came. A tape that outgrows its budget
+// (a run of very many events, a very long record) is dropped and keeps nothing more.
 class StopTape final : public HybridObserver {
  public:
+  explicit StopTape(size_t budget_bytes) : budget_(budget_bytes) {}
+
+  // Whether every call was kept.
+  bool complete() const { return !dropped_; }
+
   void Started(const Eigen::VectorXd& z0, const Phases& phases) override {
+    if (!Room()) return;
     calls_.push_back(Call::kStarted);
     Keep(z0);
     phases_.push_back(phases);
   }
   void LegEnded(double elapsed, const Phases& phases, const Eigen::VectorXd& z,
                 bool blind) override {
+    if (!Room()) return;
     calls_.push_back(blind ? Call::kBlindLeg : Call::kLeg);
     numbers_.push_back(elapsed);
     phases_.push_back(phases);
@@ -714,17 +723,20 @@ class StopTape final : public HybridObserver {
   }
   void Switched(const Phases& before, const Phases& after,
                 const std::vector<Model::KnownSide>& crossed) override {
+    if (!Room()) return;
     calls_.push_back(Call::kSwitched);
     phases_.push_back(before);
     phases_.push_back(after);
     crossed_.push_back(crossed);
   }
   void BreakpointApplied(double breakpoint, const Eigen::VectorXd& z) override {
+    if (!Room()) return;
     calls_.push_back(Call::kBreakpoint);
     numbers_.push_back(breakpoint);
     Keep(z);
   }
   void Recorded(int k, const Phases& phases) override {
+    if (!Room()) return;
     calls_.push_back(Call::kRecorded);
     samples_.push_back(k);
     phases_.push_back(phases);
@@ -774,6 +786,22 @@ class StopTape final : public HybridObserver {
     states_.insert(states_.end(), z.data(), z.data() + z.size());
     sizes_.push_back(z.size());
   }
+  // False once the tape is over its budget (the states, and about 64 bytes a call for the rest):
+  // then it is dropped.
+  bool Room() {
+    if (dropped_) return false;
+    if (states_.size() * sizeof(double) + calls_.size() * 64 <= budget_) return true;
+    dropped_ = true;
+    const auto release = [](auto* v) { std::remove_reference_t<decltype(*v)>().swap(*v); };
+    release(&calls_);
+    release(&numbers_);
+    release(&states_);
+    release(&sizes_);
+    release(&phases_);
+    release(&crossed_);
+    release(&samples_);
+    return false;
+  }
 
   std::vector<Call> calls_;
   std::vector<double> numbers_;  // leg lengths and breakpoints, in call order
@@ -782,6 +810,8 @@ class StopTape final : public HybridObserver {
   std::vector<Phases> phases_;
   std::vector<std::vector<Model::KnownSide>> crossed_;
   std::vector<int> samples_;
+  size_t budget_;
+  bool dropped_ = false;
 };
 
 // The sensitivities of a run of `model` with options `run` (validated, exact solver): the solver
@@ -882,7 +912,8 @@ SensitivityResult SimulateWithSensitivities(const Scene& scene,
 }
 
 struct RecordedRun::Kept {
-  Kept(const Scene& scene, const SimulationOptions& given) : model(scene), options(given) {}
+  Kept(const Scene& scene, const SimulationOptions& given, size_t budget_bytes)
+      : model(scene), options(given), stops(budget_bytes) {}
   Model model;
   SimulationOptions options;
   SimulationResult result;
@@ -894,8 +925,8 @@ RecordedRun::~RecordedRun() = default;
 RecordedRun::RecordedRun(RecordedRun&&) noexcept = default;
 RecordedRun& RecordedRun::operator=(RecordedRun&&) noexcept = default;
 
-RecordedRun::RecordedRun(const Scene& scene, const SimulationOptions& options)
-    : kept_(std::make_unique<Kept>(scene, options)) {
+RecordedRun::RecordedRun(const Scene& scene, const SimulationOptions& options, size_t budget_bytes)
+    : kept_(std::make_unique<Kept>(scene, options, budget_bytes)) {
   Kept& kept = *kept_;
   kept.options.solver = SolverKind::kExact;
   kept.options.Validate(kept.model.scene());
@@ -907,6 +938,8 @@ RecordedRun::RecordedRun(const Scene& scene, const SimulationOptions& options)
   kept.options.progress = nullptr;
 }
 
+bool RecordedRun::stops_kept() const { return kept_ != nullptr && kept_->stops.complete(); }
+
 const SimulationResult& RecordedRun::result() const {
   if (kept_ == nullptr) throw std::logic_error("RecordedRun::result: no run is kept");
   return kept_->result;
@@ -917,6 +950,9 @@ SensitivityResult SimulateWithSensitivities(const RecordedRun& run,
                                             const std::vector<int>& links) {
   if (run.empty()) throw std::logic_error("SimulateWithSensitivities: no run is kept");
   const RecordedRun::Kept& kept = *run.kept_;
+  if (!kept.stops.complete()) {  // the run again, with the pass
+    return Sensitivities(kept.model, kept.options, parameters, links, nullptr, nullptr);
+  }
   return Sensitivities(kept.model, kept.options, parameters, links, &kept.stops, &kept.result);
 }
 

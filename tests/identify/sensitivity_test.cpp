@@ -315,7 +315,8 @@ TEST_CASE("Sensitivities of chosen links are those links' columns", "[sensitivit
 // A fit evaluates its misfit at a point and then asks for the derivatives there: the sensitivities
 // along the kept run are those of a run with the pass attached, to the last bit, under every
 // contact law (events whose right-hand side jumps), with a recorder low-pass, with a step load's
-// breakpoint and a bite time among the parameters; a failed run's reason comes through the same.
+// breakpoint and a bite time among the parameters, and from a run whose stops outgrew their budget
+// (not kept: the solver runs again); a failed run's reason comes through the same.
 TEST_CASE("Sensitivities along a kept run are those of a run with the pass to the bit",
           "[sensitivity]") {
   std::vector<driveline::Scene> scenes;
@@ -352,6 +353,16 @@ TEST_CASE("Sensitivities along a kept run are those of a run with the pass to th
       REQUIRE(along.link_torque.size() == direct.link_torque.size());
       for (size_t j = 0; j < along.link_torque.size(); ++j) {
         CHECK(along.link_torque[j] == direct.link_torque[j]);
+      }
+      // Stops beyond the budget are not kept: the pass then runs the solver again.
+      CHECK(kept.stops_kept());
+      const driveline::RecordedRun small(scene, options, 1024);
+      CHECK_FALSE(small.stops_kept());
+      const auto again = driveline::SimulateWithSensitivities(small, parameters, links);
+      CHECK(again.unavailable == direct.unavailable);
+      REQUIRE(again.link_torque.size() == direct.link_torque.size());
+      for (size_t j = 0; j < again.link_torque.size(); ++j) {
+        CHECK(again.link_torque[j] == direct.link_torque[j]);
       }
       if (direct.unavailable.empty()) ++compared;
       if (law != driveline::ContactLaw::kLimited && direct.simulation.summary.events > 0) ++jumps;

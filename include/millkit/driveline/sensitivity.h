@@ -27,6 +27,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <cstddef>
 #include <memory>
 #include <string>
 #include <vector>
@@ -69,13 +70,19 @@ class RecordedRun {
   // Runs `scene` with the exact solver as SimulateExact does (options.solver is ignored; the
   // samples are kept or streamed as the options say, and options.sample_sink and
   // options.progress are called during this run only). Throws InputError for an invalid scene or
-  // options, as Simulate does.
-  RecordedRun(const Scene& scene, const SimulationOptions& options);
+  // options, as Simulate does. The stops are kept up to about `budget_bytes` (a state per stop:
+  // the default holds some 100 000 stops of a 20-state model); a run that needs more (very many
+  // events, a very long record) keeps none, and the sensitivities along it run the solver again.
+  RecordedRun(const Scene& scene, const SimulationOptions& options,
+              size_t budget_bytes = kDefaultBudgetBytes);
+  static constexpr size_t kDefaultBudgetBytes = size_t{16} << 20;
   ~RecordedRun();
   RecordedRun(RecordedRun&&) noexcept;
   RecordedRun& operator=(RecordedRun&&) noexcept;
 
   bool empty() const { return kept_ == nullptr; }
+  // Whether the run's stops were kept (false when they outgrew the budget).
+  bool stops_kept() const;
   // The run's result (requires !empty()).
   const SimulationResult& result() const;
 
@@ -88,8 +95,9 @@ class RecordedRun {
 };
 
 // The sensitivities along a kept run (not empty), to the bit what SimulateWithSensitivities gives
-// for the run's scene and options, without running the solver: `simulation` is a copy of
-// run.result(), whose samples are there only if the run kept them.
+// for the run's scene and options, without running the solver (unless its stops outgrew their
+// budget): `simulation` is the run's result, whose samples are there only if the options kept
+// them.
 SensitivityResult SimulateWithSensitivities(const RecordedRun& run,
                                             const std::vector<SceneParameter>& parameters,
                                             const std::vector<int>& links = {});
