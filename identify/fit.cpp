@@ -7,6 +7,7 @@
 #include <limits>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 
 #include "identify/fit_model.h"
 #include "identify/instrument_filter.h"
@@ -306,6 +307,11 @@ bool ChannelDerivatives(const driveline::RecordedRun& kept, const Oscillogram& r
     }
     *unavailable = sensitivities.unavailable;
     if (unavailable->empty()) {
+      if (sensitivities.link_torque.empty() ||
+          sensitivities.link_torque.front().rows() != static_cast<Eigen::Index>(run.samples)) {
+        throw std::logic_error(
+            "ChannelDerivatives: the kept run has another output grid than this record window");
+      }
       ChannelDerivativesFrom(run, channels, begin, end, sensitivities, derivatives);
     }
     return true;

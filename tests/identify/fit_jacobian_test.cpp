@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <stdexcept>
 
 #include "identify/instrument_filter.h"
 #include "identify/random_line.h"
@@ -203,6 +204,10 @@ TEST_CASE("A channel's derivatives along a kept plain run are those of a sensiti
         CHECK(along[c].cols() == static_cast<Eigen::Index>(parameters.size()));
         CHECK(along[c] == derivatives[c]);
       }
+      // A kept run belongs to its window.
+      CHECK_THROWS_AS(identify::ChannelDerivatives(kept, record, 0.0, channels, begin, end - 1,
+                                                   parameters, &along, &along_unavailable, &why),
+                      std::logic_error);
     }
   }
 }

@@ -313,7 +313,8 @@ bool SimulateChannels(const driveline::Scene& scene, const Oscillogram& record, 
                       std::vector<Eigen::MatrixXd>* derivatives, std::string* unavailable);
 // The derivatives the call above gives, along a run `kept` by the first SimulateChannels with the
 // same record, origin_s, channels, begin and end, without running the solver again (the torques
-// are that call's). False with a reason when the kept run failed.
+// are that call's). False with a reason when the kept run failed; std::logic_error for a run that
+// is empty or of another window.
 bool ChannelDerivatives(const driveline::RecordedRun& kept, const Oscillogram& record,
                         double origin_s, const std::vector<ChannelSpec>& channels, int begin,
                         int end, const std::vector<driveline::SceneParameter>& parameters,
