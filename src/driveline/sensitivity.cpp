@@ -5,6 +5,8 @@
 // s_P] from stop to stop in the phase set of the leg. It works in the solver's scaled
 // coordinates, ỹ = D⁻¹ z and S̃_j = σ_j D⁻¹ s_j (σ_j the parameter's magnitude), where
 // M̃ = D⁻¹ M D has a norm near the fastest mode's rate and M̃_j = σ_j D⁻¹ M_j D is of the same size.
+// The stops come from the solver as it runs, or from a run kept before (RecordedRun: its stops on
+// a tape, replayed to the pass in the same order with the same values).
 #include "millkit/driveline/sensitivity.h"
 
 #include <algorithm>
