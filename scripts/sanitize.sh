@@ -80,6 +80,13 @@ slow+="|verdict ok: a profile probe below the minimum is gone on from"
 # refinement with the rejoin stop), and "an iteration limit of 1" keeps a not_converged verdict.
 # Random line 34 under no_pull, whose starts stop on the rough floor of the best's valley: one
 # whole fit (about 1.5 s plain); its rule (verdict.cpp) runs in every fit here.
+# Two whole random-line fits of the standard errors' widening (2026-11-27, a slow hour: 60 and 43 s
+# under the sanitizers, the stage's longest after the bundled scenes' sensitivities; the run took
+# 1961 s of the 30 minutes): a flatter profile followed, and the walks' held points widening what
+# they move. The walks and the widening keep their own tests here (a profile that curves away, a
+# held point widens what it moved, widening what is correlated, a bound's profile followed inward).
+slow+="|standard errors: a profile a little flatter than its linearisation at 2 SE is followed"
+slow+="|standard errors: points held on walks widen every parameter they move"
 slow+="|standard errors: what is correlated with a widened parameter widens with it"
 slow+="|verdict not_converged: a gap kicked into the next valley"
 slow+="|verdict ok: starts that stopped on the rough floor"
