@@ -82,6 +82,7 @@ struct Tag {
   std::size_t size = 0;  // bytes of data
   std::size_t data = 0;  // offset of the data
   std::size_t next = 0;  // offset of the next element
+  bool small = false;    // size and type in one word, the data in the tag's second word
 };
 
 // Reads tags and words of one byte range (the file, or one inflated variable) and names places
@@ -125,6 +126,7 @@ class Walker {
       if (tag.size > 4) Fail(at, "a small data element declares more than 4 bytes");
       tag.data = at + 4;
       tag.next = at + 8;
+      tag.small = true;
       return tag;
     }
     tag.type = first;
@@ -167,16 +169,34 @@ class Walker {
       Fail(flags.data, "unknown array class " + std::to_string(array_class));
     }
     const Tag dims = Read(flags.next, end, true);
-    const bool has_dims = dims.type == kInt32 && dims.size % 4 == 0 && dims.size >= 8;
+    // libmatio reads a full miINT32 dimensions element as size / 4 values (padded to 8 bytes
+    // when their count is odd) and then the name where they end: whole values keep its reading
+    // in step with the element's end, where this check reads on.
+    const bool int32_dims = dims.type == kInt32 && !dims.small;
+    if (int32_dims && dims.size % 4 != 0) {
+      Fail(flags.next, "a variable's dimensions are " + std::to_string(dims.size) +
+                           " bytes, not whole miINT32 values");
+    }
+    const bool has_dims = int32_dims && dims.size >= 8;
     const std::uint64_t elements = has_dims ? Elements(dims) : 0;
-    if (array_class == kFunctionClass || array_class == kOpaqueClass) {
-      // Laid out otherwise (an opaque object has no dimensions): libmatio still sizes what it
-      // reads by any dimensions there are, so they may claim no more elements than bytes left;
-      // every element's size is held to the container.
+    if (array_class == kOpaqueClass) {
+      // Laid out otherwise (an object has no dimensions; what follows its flags is its name):
+      // libmatio still takes a full miINT32 element there for dimensions, and reads a name tag
+      // where they end, or else right after that element's tag, allocating the length it
+      // declares. Every element's size is held to the container.
       if (has_dims && elements > end - dims.next) {
         Fail(flags.next, "the dimensions claim " + std::to_string(elements) +
                              " elements, more than the " + std::to_string(end - dims.next) +
                              " bytes left");
+      }
+      const std::size_t name_at = int32_dims || dims.small ? dims.next : dims.data;
+      if (name_at != dims.next) {
+        if (end - name_at < 8) Fail(name_at, "an object's name tag runs past its container");
+        if (Word(name_at) == kInt8 && Word(name_at + 4) > end - name_at - 8) {
+          Fail(name_at, "an object's name declares " + std::to_string(Word(name_at + 4)) +
+                            " bytes, more than the " + std::to_string(end - name_at - 8) +
+                            " bytes left");
+        }
       }
       SkipElements(dims.next, end);
       return;
@@ -211,6 +231,17 @@ class Walker {
       if (elements == 0 && cursor == end) return;  // an empty array may carry no data element
       numeric("real");
       if (complex) numeric("imaginary");
+      return;
+    }
+    if (array_class == kFunctionClass) {
+      // A function handle: where an uncompressed one's name ends, libmatio reads as many
+      // variables as its dimensions claim, each as a top-level one (a pointer each first); a
+      // compressed one it does not read on.
+      if (!compressed_) {
+        fits(elements, 8, "function handle parts");
+        for (std::uint64_t i = 0; i < elements; ++i) cursor = Child(cursor, end, depth);
+      }
+      SkipElements(cursor, end);
       return;
     }
     if (array_class == kSparseClass) {
@@ -272,10 +303,12 @@ class Walker {
     while (end - at >= 8) at = Read(at, end, true).next;
   }
 
-  // A cell or struct field: a miMATRIX element; returns the offset after it.
+  // A cell, a struct field or a function handle's part: a miMATRIX element; returns the offset
+  // after it.
   std::size_t Child(std::size_t at, std::size_t end, int depth) const {
     const Tag child = Read(at, end, true);
-    if (child.type != kMatrix) Fail(at, "a cell or struct field must be a miMATRIX element");
+    if (child.type != kMatrix)
+      Fail(at, "a cell, struct field or function handle part must be a miMATRIX element");
     Matrix(child.data, child.data + child.size, depth + 1);
     return child.next;
   }

@@ -344,6 +344,46 @@ TEST_CASE("damaged MAT v5 files are refused before libmatio reads them") {
                       Contains("the dimensions claim 268435456 elements") &&
                           Contains("of the variable compressed at byte 128"));
   }
+  // The fuzzer's finding of 2026-11-27 (a function handle; libmatio asked for 2.1 GB, a pointer
+  // for each of the 16 x 16843008 parts its 10-byte dimensions gave), and its kin.
+  SECTION("a function handle whose dimensions are not whole miINT32 values") {
+    std::string bytes = plain;
+    SetWord(&bytes, 144, 16);  // function handle class
+    SetWord(&bytes, 156, 10);
+    SetWord(&bytes, 160, 0x01010000);
+    WriteBytes(path, bytes);
+    CHECK_THROWS_WITH(LoadOscillogram(path),
+                      Contains("dimensions are 10 bytes, not whole miINT32 values (byte 152)"));
+  }
+  SECTION("a function handle whose part is not a variable") {
+    std::string bytes = plain;
+    SetWord(&bytes, 144, 16);
+    SetWord(&bytes, 160, 1);  // 1 x 1: one part, where the time's values are
+    WriteBytes(path, bytes);
+    CHECK_THROWS_WITH(LoadOscillogram(path),
+                      Contains("function handle part must be a miMATRIX element"));
+  }
+  SECTION("a compressed function handle with one-word dimensions") {
+    std::string variable = inflated;
+    SetWord(&variable, 16, 16);
+    SetWord(&variable, 24, 4u << 16 | 5);  // a small miINT32 element of 4 bytes
+    SetWord(&variable, 28, 0x7FFFFFF0);    // which libmatio takes for the dimensions' bytes
+    WriteBytes(path, ReplaceFirst(zipped, variable));
+    CHECK_THROWS_WITH(LoadOscillogram(path),
+                      Contains("dimensions must be two or more miINT32") &&
+                          Contains("of the variable compressed at byte 128"));
+  }
+  SECTION("an object whose name declares more than the file holds") {
+    std::string bytes = plain;
+    SetWord(&bytes, 144, 17);  // object (opaque) class: no dimensions, its name follows
+    SetWord(&bytes, 152, 1);   // miINT8 of 8 bytes, in which libmatio reads a name tag
+    SetWord(&bytes, 160, 1);
+    SetWord(&bytes, 164, 0x7FFFFFF0);
+    WriteBytes(path, bytes);
+    CHECK_THROWS_WITH(
+        LoadOscillogram(path),
+        Contains("an object's name declares 2147483632 bytes") && Contains("(byte 160)"));
+  }
   SECTION("a compressed variable that declares more than its stream can hold") {
     std::string variable = inflated;
     SetWord(&variable, 4, 0xF0000000);
