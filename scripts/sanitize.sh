@@ -47,9 +47,13 @@ slow+="|identify --threads 2 writes the same JSON|Over 20 noisy records"
 # The campaign run twice to compare 1 and 2 threads: 27 s under the sanitizers; the other campaign
 # tests run the same fits once (35 s).
 slow+="|a campaign gives the same table and trends on 1 and 2 threads"
-# The sensitivities at 200 random-line points: 59 s under the sanitizers; the bundled scenes'
-# 36 points (57 s) run the same code under every contact law and parameter kind.
+# The sensitivities against central differences at 200 random-line points (59 s under the
+# sanitizers) and at the bundled scenes' 36 points (82 s on the run of 2026-11-27, the stage's
+# longest test): the pass runs here on three of those scenes and six random lines under every
+# contact law and parameter kind, attached and replayed ("Sensitivities along a kept run"), and
+# through a recorder low-pass against central differences (two tests).
 slow+="|Sensitivities agree with central differences at 200 points"
+slow+="|Sensitivities agree with central differences on the bundled scenes"
 # Six random-line fits with the statistical stop on and off: 86 s under the sanitizers. Every fit
 # here runs the stop; its measure has its own fast test.
 slow+="|Fits with and without the remaining-step stop agree"
