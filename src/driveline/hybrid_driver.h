@@ -9,7 +9,8 @@
 // an input breakpoint before it (one within 4 ulps of an output time is taken at that output
 // time), or to the end of an escape. A leg ends where it was aimed or at an event. At an event
 // the model classifies the phases from the state and its derivatives there, with the crossed
-// surfaces' new sides known; events that come within 64 ulps of the previous stop more than 64
+// surfaces' new sides known; events that come within 64 ulps of the previous stop, or within
+// 1e-6 of the time scale of it (a contact chattering across a surface), more than 64
 // times in a row are a degenerate switch: the integrator steps on blind to the surfaces that
 // chattered for 1e-9, then 1e-6, then 1e-3 of the time scale (as CVODE is blind to a root
 // function that starts at zero), and a fourth time the run ends with "events do not advance

@@ -17,12 +17,13 @@ using Catch::Matchers::Contains;
 namespace {
 
 // Moves straight to each leg's target, except at the scripted event times (each reported once,
-// the first time a leg spans it); from `stall_at` to `stall_end`, every leg ends in an event that
-// does not advance time, unless the leg is blind to surfaces (an escape).
+// the first time a leg spans it); from `stall_at` to `stall_end`, every leg ends in an event
+// `stall_advance` after its start (a stuck or chattering surface), unless the leg is blind to
+// surfaces (an escape).
 class ScriptedIntegrator final : public ModeIntegrator {
  public:
   std::vector<double> events;
-  double stall_at = INFINITY, stall_end = INFINITY;
+  double stall_at = INFINITY, stall_end = INFINITY, stall_advance = 0.0;
   // What the driver asked for, in order.
   std::vector<Leg> legs;
   std::vector<std::pair<double, double>> breakpoints;  // (breakpoint, t)
@@ -39,8 +40,9 @@ class ScriptedIntegrator final : public ModeIntegrator {
     end->crossed.assign(1, {0, 1});
     if (t >= stall_at && t < stall_end && leg.ignored == nullptr) {
       end->kind = LegEnd::Kind::kEvent;
-      end->t = t;
-      end->elapsed = 0.0;
+      end->t = t + stall_advance;
+      end->elapsed = stall_advance;
+      t_now = end->t;
       return;
     }
     for (double& e : events) {
@@ -163,6 +165,27 @@ TEST_CASE(
     // 1 event to reach the surface, 65 stalled events before each escape, and 64 counted before
     // the one that ends the run.
     CHECK(result.summary.events == 1 + 3 * 65 + 64);
+  }
+  SECTION("events 1e-8 of the time scale apart are a degenerate switch too; 2e-6 apart are not") {
+    // A contact chattering across a surface that both sides' motions point at (found by the
+    // driveline fuzzer: a million events 4e-13 s apart, each above the ulps of t).
+    ScriptedIntegrator chatter(model);
+    chatter.stall_at = 0.0031;
+    chatter.stall_advance = 1e-8 * h;
+    chatter.events = {0.0031};
+    const SimulationResult escaped = RunHybrid(model, SimulationOptions{}, "scripted", &chatter);
+    CHECK_FALSE(escaped.summary.success);
+    CHECK_THAT(escaped.summary.message, Contains("events do not advance time"));
+    CHECK(escaped.summary.events == 1 + 3 * 65 + 64);
+    ScriptedIntegrator slower(model);
+    slower.stall_at = 0.0031;
+    slower.stall_advance = 2e-6 * h;
+    slower.events = {0.0031};
+    SimulationOptions options;
+    options.max_events = 1000;
+    const SimulationResult counted = RunHybrid(model, options, "scripted", &slower);
+    CHECK_FALSE(counted.summary.success);
+    CHECK_THAT(counted.summary.message, Contains("more than max_events = 1000"));
   }
   SECTION("a stall that clears after one escape leaves a result") {
     ScriptedIntegrator integrator(model);

@@ -221,6 +221,29 @@ TEST_CASE("Stiff runs whose switching surfaces stay near zero answer in few subs
   }
 }
 
+TEST_CASE(
+    "A contact chattering at a heavily damped flank ends in a clear failure within a few "
+    "hundred events",
+    "[hard][stiff]") {
+  // Found by tests/fuzz/driveline_fuzz (input 00 00 04 00): gaps of 1.2e-10 and 2.8e-9 rad on
+  // couplings damped at 1.2e8 and 2.7e7, with a drive. From t = 6.66 ms the first link sits at
+  // the corner ψ = b/2, ψ' = 0 of the limited law, where its double-spring piece pushes the twist
+  // back across S2 and the free flank pushes it forward: the phases alternate 4e-13 s apart, each
+  // switch located exactly, and the run ended at max_events (a million) after 2.7 s. Such events
+  // (within 1e-6 of a sample step) are now a degenerate switch: three escapes, then the reason.
+  // CVODE steps over the corner within its root tolerance and answers.
+  const Scene scene = ExtremeSceneGenerator(0x00040000).Next();
+  REQUIRE(scene.contact == ContactLaw::kLimited);
+  const Model model(scene);
+  const auto exact = Simulate(model, {});
+  CHECK_FALSE(exact.summary.success);
+  CHECK_THAT(exact.summary.message, Contains("events do not advance time"));
+  CHECK_THAT(exact.summary.message, Contains("+2c"));
+  CHECK(exact.summary.events <= 1000);
+  const auto reference = TightCvode(model);
+  CHECK(reference.summary.success);
+}
+
 TEST_CASE("c/J past the double range is an input error, not a solver failure",
           "[hard][bad_input]") {
   Scene scene = TwoMassScene(1e-10, 1e-10, 1e300, 1.0, 0.0, 0.1, 1000.0);
