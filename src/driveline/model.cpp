@@ -270,6 +270,7 @@ void Model::BuildSurfaces() {
   const int count = kLinkSurfaceCount * backlash_link_count() + (has_drive() ? 2 : 0);
   surfaces_ = Eigen::MatrixXd::Zero(count, augmented_size());
   default_side_.assign(count, 1);
+  side_from_motion_.assign(count, 1);
   const int one = nx_;  // column of the constant forcing 1
   for (int k = 0; k < backlash_link_count(); ++k) {
     const int f = backlash_links_[k];
@@ -286,6 +287,7 @@ void Model::BuildSurfaces() {
       row(a) += rows[s].kv;
       row(b) -= rows[s].kv;
       default_side_[kLinkSurfaceCount * k + s] = kLinkDefaultSides[s];
+      side_from_motion_[kLinkSurfaceCount * k + s] = kLinkSideFromMotion[s] ? 1 : 0;
     }
   }
   if (has_drive()) {
@@ -450,8 +452,10 @@ Phases Model::Classify(const Eigen::VectorXd& z, const std::vector<Eigen::Vector
       side[j] = g[j] > 0.0 ? 1 : -1;
       continue;
     }
-    // On the surface to roundoff (rare): the motion decides, by its first moving derivative.
+    // On the surface to roundoff (rare): the motion decides, by its first moving derivative
+    // (except at the limited law's corner: kLinkSideFromMotion).
     side[j] = default_side_[j];
+    if (side_from_motion_[j] == 0) continue;
     for (const Eigen::VectorXd& derivative : derivatives) {
       // An order the caller left empty (the exact solver stops at a zero derivative) tells
       // nothing (and a dot product of unequal sizes breaks Eigen's contract).

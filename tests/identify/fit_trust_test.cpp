@@ -547,15 +547,16 @@ TEST_CASE("standard errors: what is correlated with a widened parameter widens w
   }
 }
 
-// Random line 378 (6 masses, one channel, three gaps): its four starts end in four valleys,
-// χ² 95 to 11000 apart. The best of them lies χ² 95 above the truth's minimum, with a residual
-// only 8 % above the noise (estimated from 319 quiet samples, too few to tell), and the hops,
-// the curved-valley walks and the axis probes find nothing lower: a silent wrong answer, a
-// damping 12 standard errors off. Fewer than half the starts reaching the best runs the search
-// again (4 times the scan, twice the starts), which finds the truth's minimum. (Which of the
-// valleys a start ends in moves with roundoff: an earlier build found the right one by luck.)
+// Fewer than half the starts reaching the best minimum runs the search again (4 times the scan,
+// twice the starts). It was built for random line 378 (6 masses, one channel, three gaps), whose
+// four starts ended in four valleys χ² 95 to 11000 apart: one search ended χ² 95 above the
+// truth's minimum, `ok` with a damping 12 standard errors off, and the second found the truth's.
+// Which valley a start ends in moves with roundoff: since the limited law's corner takes the
+// spring-damper piece (2026-11-28) line 378's single search reaches the truth's valley, and no
+// line of seeds 100–699 needs the second search to be right (scanned with it off). Line 413
+// (6 masses, three gaps) still scatters its starts: 1 of 4 at the best.
 TEST_CASE("verdict ok: starts scattered over many valleys run the search again") {
-  const RandomLineCase c = MakeRandomLineCase(378);
+  const RandomLineCase c = MakeRandomLineCase(413);
   const auto fits = FitWithAndWithout(c, [](FitOptions* o) { o->escalation_factor = 1; });
   const FitResult& once = fits.without;
   const FitResult& fit = fits.with;
@@ -564,15 +565,13 @@ TEST_CASE("verdict ok: starts scattered over many valleys run the search again")
                       << " at " << fits.worst_without << " SE");
   CHECK(2 * once.summary.starts_at_best < once.summary.starts);  // what runs the search again
   CHECK_FALSE(once.summary.escalated);
-  CHECK(once.summary.verdict == "ok");
-  CHECK(fits.worst_without > 5.0);
   std::string which;
   const double worst = WorstZ(fit, c.truth, &which);
   INFO("searched twice: " << fit.summary.verdict << ", worst " << which << " at " << worst
                           << " SE");
   CHECK(fit.summary.escalated);
   CHECK(fit.summary.starts == 3 * once.summary.starts);
-  CHECK(fit.summary.cost < once.summary.cost - 40.0);  // χ² about 95 lower
+  CHECK(fit.summary.cost <= once.summary.cost + 1e-6);  // never a worse minimum
   CHECK(worst < 3.0);
   CHECK(fit.summary.verdict == "ok");
 }

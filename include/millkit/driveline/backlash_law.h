@@ -84,6 +84,17 @@ std::array<LinkSurfaceRow, kLinkSurfaceCount> LinkSurfaceRows(double c, double d
 // side without contact, or the spring-damper piece. With these sides on a surface the region is
 // the one BacklashTorque takes there.
 inline constexpr std::array<int, kLinkSurfaceCount> kLinkDefaultSides = {-1, 1, -1, -1, 1, 1};
+// Whether a surface found on it to roundoff at an event takes its side from the motion before the
+// event (its first moving derivative), or its default side. S3 and S5 (τd = τc, where limited
+// changes from the spring-damper piece to the double spring) take the default, the spring-damper
+// piece: S3 is on it to roundoff away from an event on S3 itself only at the corner ψ = b/2,
+// ψ' = 0, where every piece's torque is zero and the motion before (free, or the dead zone)
+// shows τd > τc for any push. There the double spring, without the damper, pushes a light mass
+// back across S2 within picoseconds and the free flank pushes it forward again (a chatter, found
+// by the driveline fuzzer); the spring-damper piece holds it at the torque that carries it, and
+// a real push leaves it across S3 at the next event.
+inline constexpr std::array<bool, kLinkSurfaceCount> kLinkSideFromMotion = {true,  true, true,
+                                                                            false, true, false};
 
 // The region under `law` from the sides (+1 or −1) of the link's six surfaces, side[kS0..kS5].
 // Tie-breaks: contact needs S0 > 0 (S1 < 0); limited frees on S2 <= 0 (S4 >= 0) and takes the

@@ -118,7 +118,8 @@ class Model {
   // The phases of state z. `known_sides` gives the side of surfaces the caller knows (the one
   // just crossed at an event: its new side). Any other surface whose value is zero to roundoff
   // takes its side from the sign of its first, then second, time derivative (zdot, zddot computed
-  // in the phases before the event); with all three zero, the side without contact.
+  // in the phases before the event); with all three zero, the side without contact. The limited
+  // law's S3 and S5 take the spring-damper side (kLinkSideFromMotion).
   struct KnownSide {
     int surface;
     int side;
@@ -208,6 +209,9 @@ class Model {
   Eigen::MatrixXd surfaces_;
   Eigen::MatrixXd abs_surfaces_;   // |surfaces_|, for roundoff scales
   std::vector<int> default_side_;  // side of each surface when it cannot be told
+  // Per surface: on it to roundoff, the motion before the event decides its side (else the
+  // default; kLinkSideFromMotion).
+  std::vector<char> side_from_motion_;
   // For rigid links: the scene masses of the group on the link's `to` side.
   std::vector<std::vector<int>> rigid_to_side_masses_;
   Eigen::VectorXd initial_state_;  // InitialState(), computed once
