@@ -13,10 +13,12 @@ constexpr double kEps = std::numeric_limits<double>::epsilon();
 // An event within this many ulps of the previous stop (of time and of the time scale), or within
 // kChatterFraction of the time scale, does not advance time; more than kMaxStalledEvents of them
 // in a row are a degenerate switch. The fraction catches a contact that chatters across a
-// surface on both of whose sides the motion points back at it (a limited-law link at the corner
-// ψ = b/2, ψ' = 0 under a heavy damper: +2c and +free, 4e-13 s apart, where 1e-6 of a sample
-// step is 6e-12 s): its events advance time by more than ulps, a million of them by 2e-7 s. No
-// resolved motion switches that fast: the scene rule puts 4 samples in the fastest period.
+// surface on both of whose sides the motion points back at it: its events advance time by more
+// than ulps. Found on a limited-law link at the corner ψ = b/2, ψ' = 0 under a heavy damper
+// (+2c and +free 4e-13 s apart, where 1e-6 of a sample step is 6e-12 s: a million events
+// advanced time by 2e-7 s), which the corner rule (kLinkSideFromMotion) has since mended; the
+// guard stays for any other. No resolved motion switches that fast: the scene rule puts 4
+// samples in the fastest period.
 constexpr double kStallUlps = 64.0;
 constexpr double kChatterFraction = 1e-6;
 constexpr int kMaxStalledEvents = 64;
