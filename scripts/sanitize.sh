@@ -44,6 +44,9 @@ slow+="|A second noisy record shrinks|verdict misfit|identify reports a gap the 
 slow+="|Modelling the recorder's anti-alias filter|a record in kN|Two noise-free records give back"
 slow+="|a gain held by its bounds|a logger CSV with BOM|A noise-free record gives back every true"
 slow+="|identify --threads 2 writes the same JSON|Over 20 noisy records"
+# Five extreme scenes held within roundoff of a switching surface, each with its denser run and
+# its CVODE references (1.3 s plain): the stiff substeps' code runs here in the other stiff tests.
+slow+="|A surface held within roundoff of zero by a heavily damped motion is crossed"
 # The campaign run twice to compare 1 and 2 threads: 27 s under the sanitizers; the other campaign
 # tests run the same fits once (35 s).
 slow+="|a campaign gives the same table and trends on 1 and 2 threads"

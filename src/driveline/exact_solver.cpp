@@ -39,6 +39,9 @@
 // hold it near zero at the finest level (a tiny gap beside a stiff oscillation). The
 // cost is O(log ‖m‖ h) per step and per transient, the cache of phase data is bounded in bytes,
 // and a surface that never clears ends the run with a reason (kMaxStiffSubsteps), never a hang.
+// The substeps' sum is compensated (a drift below the state's ulp is kept), and a surface held
+// within its tolerance past zero, moving across, for kMaxSubstepsOnSurface substeps is crossed
+// there, with what that may cost in the error estimate.
 // The run itself (output times, breakpoints, classification at events, the escape from a
 // degenerate switch, the summary) is the hybrid driver's (hybrid_driver.h); this file is its
 // per-phase-set integrator.
@@ -101,6 +104,10 @@ constexpr double kGrowthBaseNorm = 0.125;
 constexpr size_t kMaxCacheBytes = size_t{64} << 20;
 // Ulps of rounding per entry of a ladder propagator (built in long double, rounded once).
 constexpr double kLadderUlps = 4.0;
+// Stiff substeps in a row that may end with one watched surface past zero but within its crossing
+// tolerance, moving across and not cleared by the bounds, before that is taken as its crossing
+// (StiffAdvance: a surface held there by the rounding of a heavily damped motion).
+constexpr int kMaxSubstepsOnSurface = 64;
 // Substeps of one stiff step before the run gives up (a clear failure instead of a hang).
 constexpr long kMaxStiffSubsteps = 200'000;
 // And in the whole run (about 2.5 s on one core): a run that crawls ends with its reason.
@@ -593,6 +600,14 @@ class ExactIntegrator final : public ModeIntegrator {
   PhaseData* data_ = nullptr;  // their data
   SimulationSummary* summary_ = nullptr;
   long stiff_substeps_ = 0;
+  // The watched surface the last accepted stiff substeps ended on to roundoff while moving
+  // across, and how many in a row (reset at a switch).
+  int on_surface_ = -1;
+  int on_surface_substeps_ = 0;
+  // A crossing so taken: the time its surface needs to cross its tolerance band, and the
+  // derivative before the switch (zero time: none pending).
+  double held_crossing_time_ = 0.0;
+  std::vector<double> held_crossing_v_;
   size_t cache_bytes_ = 0;
   double h_ = 0.0;
   Eigen::VectorXd scale_, inverse_scale_;
@@ -630,6 +645,8 @@ class ExactIntegrator final : public ModeIntegrator {
   std::vector<int> stiff_candidates_;
   std::vector<double> size_scratch_, terms_scratch_;
   std::vector<double> stiff_tolerance_;
+  std::vector<double> stiff_carry_, stiff_carry1_;
+  std::vector<char> stiff_bounded_out_;
   std::vector<std::uint64_t> moving_;
   // Output map of kept samples: speed of each scene mass, twist of each flexible scene link.
   std::vector<int> speed_index_;
@@ -951,10 +968,68 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
   acc.assign(stride_, 0.0);
   out.assign(std::max<int>(2 * active_stride_, data->observe.ld()), 0.0);
   moving_.resize(words_);
+  // The substeps' sum is compensated: `carry` holds what rounding y + Δy dropped (carry1 that of
+  // the substep being taken). Two large speeds joined by a heavy damper change by the same amount
+  // to the last bit over a short substep; without it the drift of their difference, below their
+  // ulp, is lost on every substep and the link's torque stops moving (found by the driveline
+  // fuzzer, input 21 0a: a surface reading that difference 3e8 times held 0.9997 of its tolerance
+  // past zero while the substeps stayed at 2^-21 h until the budget ended).
+  std::vector<double>& carry = stiff_carry_;
+  std::vector<double>& carry1 = stiff_carry1_;
+  carry.assign(stride_, 0.0);
+  carry1.assign(stride_, 0.0);
+  // Per watched surface, whether the bounds failed to clear it in an attempt at the substep now
+  // being taken (a substep halved for it, or searched exactly).
+  std::vector<char>& bounded_out = stiff_bounded_out_;
+  bounded_out.assign(count, 0);
+  auto carry_over = [&] {
+    for (int i = 0; i < active_stride_; ++i) {
+      const double step = (y1[i] - ys[i]) + carry[i];
+      const double sum = ys[i] + step;
+      carry1[i] = step - (sum - ys[i]);
+      y1[i] = sum;
+    }
+  };
   auto accept = [&] {
+    carry.swap(carry1);
     std::copy(y1, y1 + stride_, ys.begin());
     std::copy(v1, v1 + stride_, vs.begin());
     std::copy(end, end + count, gs.begin());
+  };
+  // Whether the substep about to be accepted ends the advance at a crossing: a watched surface
+  // that the bounds did not clear, which ends kMaxSubstepsOnSurface substeps in a row past zero
+  // but within its crossing tolerance, with its slope across. There its sign is the state's
+  // rounding: a surface summing terms 1e13 times its value, whose end point the ladder's
+  // propagator and the Taylor series of the same substep put on either side of −tolerance (the
+  // driveline fuzzer's seeds 331, 549, 983 and 0x85002800 ended on the substep budget so). The
+  // crossing is taken at the substep's end; what that may be off by, the jump of the motion at
+  // the switch times the time the surface needs to cross its band, goes into the estimate
+  // (Switch()).
+  auto crossing_on_surface = [&] {
+    int found = -1;
+    for (int w = 0; w < count && found < 0; ++w) {
+      if (bounded_out[w] && end[w] < 0.0 && end[w] >= -stiff_tolerance_[w]) found = w;
+    }
+    std::fill(bounded_out.begin(), bounded_out.end(), 0);
+    if (found >= 0) {
+      data->rows.Apply(v1, out.data());
+      if (!(out[found] < 0.0)) found = -1;
+    }
+    if (found < 0 || found != on_surface_) {
+      on_surface_ = found;
+      on_surface_substeps_ = found < 0 ? 0 : 1;
+      return false;
+    }
+    if (++on_surface_substeps_ < kMaxSubstepsOnSurface) return false;
+    // What the crossing may be off by: the motion of the pieces on either side differs (the
+    // switch compares them, Switch()) for as long as the surface takes to cross its tolerance band.
+    held_crossing_time_ = std::min(2.0 * stiff_tolerance_[found] / std::abs(out[found]),
+                                   std::numeric_limits<double>::max());
+    held_crossing_v_.assign(v1, v1 + stride_);
+    *crossed = found;
+    on_surface_ = -1;
+    on_surface_substeps_ = 0;
+    return true;
   };
   double done = 0.0;
   int level = std::clamp(data->level, 0, search);
@@ -990,10 +1065,13 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
     const double sigma = taylor ? remaining : sigma_level;
     if (taylor) {
       ExpandStep(*data, ys.data(), vs.data(), sigma, y1, v1);
+      carry_over();
     } else {
       data->ladder[level].Apply(vs.data(), out.data());
       for (int i = 0; i < active_stride_; ++i) {
-        y1[i] = ys[i] + out[i];
+        const double step = out[i] + carry[i];
+        y1[i] = ys[i] + step;
+        carry1[i] = step - (y1[i] - ys[i]);
         v1[i] = out[active_stride_ + i];
       }
       for (int i = active_stride_; i < stride_; ++i) {
@@ -1020,6 +1098,7 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
       if (end[w] >= -stiff_tolerance_[w] && StaticSurface(data, w, vs.data())) continue;
       if (Ignored(data->watched[w].index)) continue;
       stiff_candidates_.push_back(w);
+      bounded_out[w] = 1;
     }
     ++summary.steps;
     if (stiff_candidates_.empty()) {
@@ -1029,6 +1108,11 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
         const double v_norm = numerics::MaxAbsPadded(vs.data(), active_stride_);
         summary.error_estimate +=
             v_norm * (data->ladder_defect[level] + kEps * data->norm_inf * sigma * sigma);
+      }
+      if (crossing_on_surface()) {
+        *tau_event = done + sigma;
+        data->level = level;
+        return true;
       }
       accept();
       done = last ? tau : done + sigma;
@@ -1040,7 +1124,10 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
       continue;
     }
     // Short enough for the exact search on the step's Taylor series.
-    if (!taylor) ExpandStep(*data, ys.data(), vs.data(), sigma, y1, v1);
+    if (!taylor) {
+      ExpandStep(*data, ys.data(), vs.data(), sigma, y1, v1);
+      carry_over();
+    }
     const double resolution_s =
         kStallUlps * kEps * std::max(std::abs(t + done) + sigma, h_) / series_.dt;
     int piece = 0;
@@ -1052,6 +1139,11 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
       return true;
     }
     data->observe.Apply(y1, end);
+    if (crossing_on_surface()) {
+      *tau_event = done + sigma;
+      data->level = level;
+      return true;
+    }
     accept();
     done = last ? tau : done + sigma;
   }
@@ -1289,6 +1381,7 @@ MILLKIT_HOT void ExactIntegrator::AdvanceLeg(double t, const Leg& leg, LegEnd* l
   std::vector<double>&y = y_, &v = v_, &y1 = y1_, &v1 = v1_, &g0 = g0_, &dg0 = dg0_, &end = end_,
   &dg1 = dg1_, &out = out_;
   ignored_ = leg.ignored;
+  held_crossing_time_ = 0.0;  // (a crossing taken on its surface that did not switch)
   const double t_grid = leg.output_time;
   const double target = leg.target;
   const double tau = target - t;
@@ -1453,10 +1546,18 @@ void ExactIntegrator::EventMotion(Eigen::VectorXd* z, std::vector<Eigen::VectorX
 }
 
 void ExactIntegrator::Switch(const Phases& phases, double /*t*/) {
+  on_surface_ = -1;
+  on_surface_substeps_ = 0;
   y_.swap(y1_);
   phases_ = phases;
   data_ = Data(phases_);
   Refresh();
+  if (held_crossing_time_ > 0.0) {
+    double jump = 0.0;
+    for (int i = 0; i < active_; ++i) jump = std::max(jump, std::abs(v_[i] - held_crossing_v_[i]));
+    summary_->error_estimate += jump * held_crossing_time_;
+    held_crossing_time_ = 0.0;
+  }
 }
 
 void ExactIntegrator::ApplyBreakpoint(double breakpoint, double /*t*/) {
