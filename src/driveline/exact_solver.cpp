@@ -604,9 +604,10 @@ class ExactIntegrator final : public ModeIntegrator {
   // across, and how many in a row (reset at a switch).
   int on_surface_ = -1;
   int on_surface_substeps_ = 0;
-  // A crossing so taken: the time its surface needs to cross its tolerance band, and the
-  // derivative before the switch (zero time: none pending).
+  // A crossing so taken: the time its surface needs to cross its tolerance band (at most what is
+  // left of the run), and the derivative before the switch (zero time: none pending).
   double held_crossing_time_ = 0.0;
+  double run_end_ = 0.0;  // the last output time
   std::vector<double> held_crossing_v_;
   size_t cache_bytes_ = 0;
   double h_ = 0.0;
@@ -1005,7 +1006,7 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
   // crossing is taken at the substep's end; what that may be off by, the jump of the motion at
   // the switch times the time the surface needs to cross its band, goes into the estimate
   // (Switch()).
-  auto crossing_on_surface = [&] {
+  auto crossing_on_surface = [&](double t_end) {
     int found = -1;
     for (int w = 0; w < count && found < 0; ++w) {
       if (bounded_out[w] && end[w] < 0.0 && end[w] >= -stiff_tolerance_[w]) found = w;
@@ -1024,7 +1025,7 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
     // What the crossing may be off by: the motion of the pieces on either side differs (the
     // switch compares them, Switch()) for as long as the surface takes to cross its tolerance band.
     held_crossing_time_ = std::min(2.0 * stiff_tolerance_[found] / std::abs(out[found]),
-                                   std::numeric_limits<double>::max());
+                                   std::max(run_end_ - t_end, 0.0));
     held_crossing_v_.assign(v1, v1 + stride_);
     *crossed = found;
     on_surface_ = -1;
@@ -1109,7 +1110,7 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
         summary.error_estimate +=
             v_norm * (data->ladder_defect[level] + kEps * data->norm_inf * sigma * sigma);
       }
-      if (crossing_on_surface()) {
+      if (crossing_on_surface(t + done + sigma)) {
         *tau_event = done + sigma;
         data->level = level;
         return true;
@@ -1139,7 +1140,7 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
       return true;
     }
     data->observe.Apply(y1, end);
-    if (crossing_on_surface()) {
+    if (crossing_on_surface(t + done + sigma)) {
       *tau_event = done + sigma;
       data->level = level;
       return true;
@@ -1337,6 +1338,7 @@ std::string ExactIntegrator::Start(const Eigen::VectorXd& z0, const Phases& phas
   summary_ = summary;
   const Scene& scene = model_.reduced_scene();  // outputs convert back in the recorder
   h_ = CachedStepLength(scene, options_);
+  run_end_ = OutputGrid(scene, options_).back();
   scale_ = AugmentedScale(model_, h_);
   BalanceScale(model_, &scale_);
   inverse_scale_ = scale_.cwiseInverse();
