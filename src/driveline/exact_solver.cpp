@@ -983,13 +983,15 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
   // being taken (a substep halved for it, or searched exactly).
   std::vector<char>& bounded_out = stiff_bounded_out_;
   bounded_out.assign(count, 0);
+  // y1_i = ys_i + delta with the carry added, and what that rounding drops kept in carry1_i.
+  auto add = [&](int i, double delta) {
+    const double step = delta + carry[i];
+    y1[i] = ys[i] + step;
+    carry1[i] = step - (y1[i] - ys[i]);
+  };
+  // The same for a substep whose end the Taylor series gave (its increment as y1 − ys).
   auto carry_over = [&] {
-    for (int i = 0; i < active_stride_; ++i) {
-      const double step = (y1[i] - ys[i]) + carry[i];
-      const double sum = ys[i] + step;
-      carry1[i] = step - (sum - ys[i]);
-      y1[i] = sum;
-    }
+    for (int i = 0; i < active_stride_; ++i) add(i, y1[i] - ys[i]);
   };
   auto accept = [&] {
     carry.swap(carry1);
@@ -1070,9 +1072,7 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
     } else {
       data->ladder[level].Apply(vs.data(), out.data());
       for (int i = 0; i < active_stride_; ++i) {
-        const double step = out[i] + carry[i];
-        y1[i] = ys[i] + step;
-        carry1[i] = step - (y1[i] - ys[i]);
+        add(i, out[i]);
         v1[i] = out[active_stride_ + i];
       }
       for (int i = active_stride_; i < stride_; ++i) {
