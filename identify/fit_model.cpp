@@ -471,11 +471,18 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
   if (want_jacobian && derivatives_ == Derivatives::kSensitivity) {
     std::vector<Eigen::MatrixXd> dm;
     bool available = false;
+    jacobian_skipped_ = false;
     if (!kept_point_.empty() && std::equal(kept_point_.begin(), kept_point_.end(), parameters[0])) {
       // The point of the latest plain evaluation (a step Levenberg–Marquardt just accepted).
       kept_point_.clear();
       m = std::move(kept_m_);
       r = std::move(kept_r_);
+      if (JacobianUnused(parameters[0], r)) {
+        Eigen::Map<Eigen::VectorXd>(residuals, n) = r;
+        Eigen::Map<Eigen::VectorXd>(jacobians[0], static_cast<Eigen::Index>(n) * p).setZero();
+        jacobian_skipped_ = true;
+        return true;
+      }
       if (!model_.DerivativesAlong(kept_runs_, u.data(), &dm, &available, frozen_)) return false;
     } else if (!model_.TorquesWithDerivatives(u.data(), &m, &dm, &available, frozen_) ||
                !model_.Project(m, &r)) {
@@ -553,6 +560,15 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
   }
   Measure(jac, r, parameters[0]);
   return true;
+}
+
+bool ProjectedResidual::JacobianUnused(const double* phi, const Eigen::VectorXd& r) const {
+  if (iteration_ < 1) return false;  // the start's Jacobian sets Levenberg–Marquardt's scaling
+  if (stop_ && stop_(phi, 0.5 * r.squaredNorm())) {
+    stopped_ = true;
+    return true;
+  }
+  return !measure_step_ && iteration_ >= last_iteration_;
 }
 
 void ProjectedResidual::Measure(const Eigen::Ref<const Eigen::MatrixXd>& jacobian,

@@ -207,6 +207,23 @@ class ProjectedResidual : public ceres::CostFunction {
   // The angles φ of the latest evaluation with a Jacobian (empty before the first).
   const std::vector<double>& jacobian_point() const { return jacobian_point_; }
 
+  // Levenberg–Marquardt evaluates the Jacobian at every point it accepts before it asks its
+  // callbacks and its iteration cap whether to go on. Where it stops right there, that Jacobian
+  // is never read: at the cap (`last_iteration`, Ceres' max_num_iterations) of a refinement that
+  // keeps no precision (MeasureRemainingStep not asked), or at an accepted point that `stop`
+  // (given its φ and cost ½‖r‖²) ends the fit at. With sensitivities, the Jacobian asked at the
+  // point of the plain run just before is then skipped: the residuals come with a zero Jacobian.
+  // An IterationCallback must report each finished iteration (IterationFinished) and end the
+  // fit once stopped(); jacobian_skipped() tells that the latest Jacobian was not computed
+  // (jacobian_point() is then an earlier point's).
+  void EndEarly(int last_iteration, std::function<bool(const double* phi, double cost)> stop) {
+    last_iteration_ = last_iteration;
+    stop_ = std::move(stop);
+  }
+  void IterationFinished(int iteration) const { iteration_ = iteration + 1; }
+  bool stopped() const { return stopped_; }
+  bool jacobian_skipped() const { return jacobian_skipped_; }
+
  private:
   const FitModel& model_;
   double step_;
@@ -216,6 +233,13 @@ class ProjectedResidual : public ceres::CostFunction {
   mutable double remaining_step_se_ = std::numeric_limits<double>::quiet_NaN();
   mutable Eigen::MatrixXd precision_;
   mutable std::vector<double> jacobian_point_;
+  int last_iteration_ = std::numeric_limits<int>::max();
+  std::function<bool(const double*, double)> stop_;
+  mutable int iteration_ = 0;  // the iteration in progress
+  mutable bool stopped_ = false;
+  mutable bool jacobian_skipped_ = false;
+  // Whether the Jacobian at an accepted point φ with residuals r would never be read (EndEarly).
+  bool JacobianUnused(const double* phi, const Eigen::VectorXd& r) const;
   // With sensitivities, the latest plain evaluation (not yet followed by a Jacobian there): its
   // point φ, torques, residuals and each record's run, which the Jacobian that
   // Levenberg–Marquardt asks for after accepting that point follows instead of running again.

@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <numeric>
-#include <optional>
 #include <random>
 
 #include "identify/verdict.h"
@@ -60,24 +60,32 @@ class CloseEnough final : public ceres::IterationCallback {
   const FitOptions& options_;
 };
 
-// Ends Levenberg–Marquardt at the first current point within options.rejoin_se of a known
-// minimum (the length of the difference in φ under the minimum's precision) whose χ² (twice
-// the fixed-weight cost) is not below the minimum's by more than 1.
-class Rejoins final : public ceres::IterationCallback {
+// Reports each finished iteration to the residual (ProjectedResidual::EndEarly), and, given a
+// known minimum, ends Levenberg–Marquardt at the first current point within options.rejoin_se of
+// it (the length of the difference in φ under the minimum's precision) whose χ² (twice the
+// fixed-weight cost) is not below the minimum's by more than 1. The residual tests an accepted
+// point before its Jacobian (which the fit then never reads); the start is tested here.
+class EarlyEnd final : public ceres::IterationCallback {
  public:
-  Rejoins(const ProjectedResidual& residual, const FitOptions& options, const LocalFit& known)
+  EarlyEnd(const ProjectedResidual& residual, const FitOptions& options, const LocalFit* known)
       : residual_(residual), options_(options), known_(known) {
-    phi_.resize(known.u.size());
-    for (size_t i = 0; i < known.u.size(); ++i) phi_[i] = ParameterMap::AngleFromUnit(known.u[i]);
+    if (known == nullptr) return;
+    phi_.resize(static_cast<Eigen::Index>(known->u.size()));
+    for (size_t i = 0; i < known->u.size(); ++i) {
+      phi_[static_cast<Eigen::Index>(i)] = ParameterMap::AngleFromUnit(known->u[i]);
+    }
+  }
+  bool Rejoins(const double* phi, double cost) const {
+    const Eigen::VectorXd d = Eigen::Map<const Eigen::VectorXd>(phi, phi_.size()) - phi_;
+    return d.dot(known_->precision * d) <= options_.rejoin_se * options_.rejoin_se &&
+           2.0 * (cost - known_->cost) >= -1.0;
   }
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
+    residual_.IterationFinished(summary.iteration);
     const std::vector<double>& at = residual_.jacobian_point();
-    if (!summary.step_is_successful || at.size() != known_.u.size()) return ceres::SOLVER_CONTINUE;
-    Eigen::VectorXd d(at.size());
-    for (size_t i = 0; i < at.size(); ++i) d[i] = at[i] - phi_[i];
-    const double length2 = d.dot(known_.precision * d);
-    if (length2 <= options_.rejoin_se * options_.rejoin_se &&
-        2.0 * (summary.cost - known_.cost) >= -1.0) {
+    if (residual_.stopped() ||
+        (known_ != nullptr && summary.step_is_successful && !residual_.jacobian_skipped() &&
+         static_cast<Eigen::Index>(at.size()) == phi_.size() && Rejoins(at.data(), summary.cost))) {
       rejoined_ = true;
       return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
     }
@@ -88,7 +96,7 @@ class Rejoins final : public ceres::IterationCallback {
  private:
   const ProjectedResidual& residual_;
   const FitOptions& options_;
-  const LocalFit& known_;
+  const LocalFit* known_;
   Eigen::VectorXd phi_;
   bool rejoined_ = false;
 };
@@ -191,17 +199,22 @@ LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<do
   solver.num_threads = 1;  // one residual block: the workers are the search's (options.threads)
   solver.logging_type = ceres::SILENT;
   // The rejoin test first: where both stop the fit, it is the known minimum.
-  std::optional<Rejoins> rejoins;
-  if (known != nullptr && known->precision.size() > 0 && options.rejoin_se > 0.0) {
-    solver.callbacks.push_back(&rejoins.emplace(residual, options, *known));
-  }
+  const bool rejoin = known != nullptr && known->precision.size() > 0 && options.rejoin_se > 0.0;
+  EarlyEnd early_end(residual, options, rejoin ? known : nullptr);
+  residual.EndEarly(solver.max_num_iterations,
+                    rejoin ? std::function<bool(const double*, double)>(
+                                 [&early_end](const double* phi, double cost) {
+                                   return early_end.Rejoins(phi, cost);
+                                 })
+                           : nullptr);
+  solver.callbacks.push_back(&early_end);
   CloseEnough close_enough(residual, options);
   if (final_stage && frozen.empty() && options.remaining_step_se > 0.0) {
     residual.MeasureRemainingStep();
     solver.callbacks.push_back(&close_enough);
   }
   ceres::Solve(solver, &problem, &fit.summary);
-  if (rejoins && rejoins->rejoined()) {
+  if (early_end.rejoined()) {
     fit.summary.termination_type = ceres::CONVERGENCE;
     fit.summary.message = "came back to a minimum found before (within " +
                           ShortNumber(options.rejoin_se) + " standard errors)";

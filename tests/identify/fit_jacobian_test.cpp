@@ -9,6 +9,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <random>
 #include <stdexcept>
 
@@ -444,6 +445,126 @@ TEST_CASE("Fits with and without the rejoin stop agree", "[fit]") {
   identify::FitOptions full;
   full.rejoin_se = 0.0;
   CheckSameFits({4ul, 23ul, 312ul}, full, true);
+}
+
+}  // namespace millkit
+
+namespace millkit {
+namespace {
+
+// Levenberg–Marquardt over ProjectedResidual as identify's refinements run it, the iterations
+// reported to the residual (ProjectedResidual::EndEarly) or not.
+struct LevenbergMarquardtRun {
+  std::vector<double> phi;
+  size_t iterations = 0;
+  ceres::TerminationType termination = ceres::FAILURE;
+  double cost = 0.0;
+  long simulations = 0;
+  std::vector<std::vector<double>> accepted;  // the points of the Jacobians computed
+  bool skipped = false;                       // the last Jacobian asked was not computed
+  bool stopped = false;
+  bool last_step_accepted = false;
+};
+
+class ReportIterations final : public ceres::IterationCallback {
+ public:
+  ReportIterations(const identify::ProjectedResidual& residual, bool report,
+                   LevenbergMarquardtRun* run)
+      : residual_(residual), report_(report), accepted_(&run->accepted), run_(run) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
+    if (report_) residual_.IterationFinished(summary.iteration);
+    run_->last_step_accepted = summary.iteration > 0 && summary.step_is_successful;
+    if (summary.step_is_successful && !residual_.jacobian_skipped()) {
+      accepted_->push_back(residual_.jacobian_point());
+    }
+    return residual_.stopped() ? ceres::SOLVER_TERMINATE_SUCCESSFULLY : ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  const identify::ProjectedResidual& residual_;
+  bool report_;
+  std::vector<std::vector<double>>* accepted_;
+  LevenbergMarquardtRun* run_;
+};
+
+LevenbergMarquardtRun RunLevenbergMarquardt(
+    const identify::FitModel& model, std::vector<double> phi, int iterations, bool report,
+    std::function<bool(const double*, double)> stop = nullptr) {
+  LevenbergMarquardtRun run;
+  identify::ProjectedResidual residual(model, 1e-3, identify::Derivatives::kSensitivity);
+  if (report) residual.EndEarly(iterations, std::move(stop));
+  ceres::Problem::Options problem_options;
+  problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  problem.AddResidualBlock(&residual, nullptr, phi.data());
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::DENSE_QR;
+  options.max_num_iterations = iterations;
+  options.function_tolerance = 1e-12;
+  options.parameter_tolerance = 1e-12;
+  options.gradient_tolerance = 1e-20;
+  options.logging_type = ceres::SILENT;
+  ReportIterations callback(residual, report, &run);
+  options.callbacks.push_back(&callback);
+  const long before = model.simulations();
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  run.simulations = model.simulations() - before;
+  run.phi = phi;
+  run.iterations = summary.iterations.size();
+  run.termination = summary.termination_type;
+  run.cost = summary.final_cost;
+  run.skipped = residual.jacobian_skipped();
+  run.stopped = residual.stopped();
+  return run;
+}
+
+}  // namespace
+
+// The Jacobian Levenberg–Marquardt asks for at the point it accepts last, before its iteration
+// cap or a stop test ends it there, is never read (identify/multistart.cpp's refinements): it is
+// skipped, one simulation less, and the fit ends at the same point to the last bit. A residual
+// that skipped a Jacobian still read would move the next step; one that did not skip would cost
+// the simulation.
+TEST_CASE("A Jacobian the fit never reads is not computed", "[fit]") {
+  std::mt19937_64 random(5);
+  int capped_on_accepted = 0;
+  int stopped = 0;
+  for (unsigned long seed = 1; seed <= 6; ++seed) {
+    INFO("seed " << seed);
+    const auto line = identify::MakeRandomLineCase(seed);
+    const std::vector<double> weights(line.config.channels.size(), 1.0);
+    const std::vector<identify::Oscillogram> records{line.record};
+    const identify::FitModel model(line.prior, records, line.config, weights);
+    std::vector<double> start(model.parameters());
+    for (double& angle : start) angle = std::uniform_real_distribution<double>(-0.6, 0.6)(random);
+    const auto plain = RunLevenbergMarquardt(model, start, 4, false);
+    const auto capped = RunLevenbergMarquardt(model, start, 4, true);
+    CHECK(capped.phi == plain.phi);
+    CHECK(capped.iterations == plain.iterations);
+    CHECK(capped.termination == plain.termination);
+    CHECK(capped.cost == plain.cost);
+    // Skipped exactly where the cap ends the fit on an accepted point.
+    const bool last_accepted =
+        plain.termination == ceres::NO_CONVERGENCE && plain.last_step_accepted;
+    CHECK(capped.skipped == last_accepted);
+    CHECK(capped.simulations == plain.simulations - (last_accepted ? 1 : 0));
+    capped_on_accepted += last_accepted ? 1 : 0;
+    // A stop test met at the second accepted point: the fit ends there without its Jacobian.
+    if (plain.accepted.size() < 3) continue;
+    const std::vector<double> second = plain.accepted[2];
+    const auto stop = [&second](const double* phi, double /*cost*/) {
+      return std::equal(second.begin(), second.end(), phi);
+    };
+    const auto ended = RunLevenbergMarquardt(model, start, 50, true, stop);
+    CHECK(ended.stopped);
+    CHECK(ended.skipped);
+    CHECK(ended.phi == second);
+    CHECK(ended.termination == ceres::USER_SUCCESS);
+    ++stopped;
+  }
+  CHECK(capped_on_accepted >= 2);
+  CHECK(stopped >= 2);
 }
 
 }  // namespace millkit
