@@ -466,23 +466,18 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
   std::vector<double> u(p);
   for (int i = 0; i < p; ++i) u[i] = ParameterMap::UnitFromAngle(parameters[0][i]);
   const bool want_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
+  if (want_jacobian) jacobian_skipped_ = false;
   std::vector<Eigen::VectorXd> m;
   Eigen::VectorXd r;
   if (want_jacobian && derivatives_ == Derivatives::kSensitivity) {
     std::vector<Eigen::MatrixXd> dm;
     bool available = false;
-    jacobian_skipped_ = false;
     if (!kept_point_.empty() && std::equal(kept_point_.begin(), kept_point_.end(), parameters[0])) {
       // The point of the latest plain evaluation (a step Levenberg–Marquardt just accepted).
       kept_point_.clear();
       m = std::move(kept_m_);
       r = std::move(kept_r_);
-      if (JacobianUnused(parameters[0], r)) {
-        Eigen::Map<Eigen::VectorXd>(residuals, n) = r;
-        Eigen::Map<Eigen::VectorXd>(jacobians[0], static_cast<Eigen::Index>(n) * p).setZero();
-        jacobian_skipped_ = true;
-        return true;
-      }
+      if (SkipJacobian(parameters[0], r, residuals, jacobians[0])) return true;
       if (!model_.DerivativesAlong(kept_runs_, u.data(), &dm, &available, frozen_)) return false;
     } else if (!model_.TorquesWithDerivatives(u.data(), &m, &dm, &available, frozen_) ||
                !model_.Project(m, &r)) {
@@ -525,7 +520,7 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
       return true;
     }
   }
-  if (!want_jacobian) return true;
+  if (!want_jacobian || SkipJacobian(parameters[0], r, residuals, jacobians[0])) return true;
   Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> jac(
       jacobians[0], n, p);
   jac.setZero();
@@ -562,13 +557,21 @@ bool ProjectedResidual::Evaluate(double const* const* parameters, double* residu
   return true;
 }
 
-bool ProjectedResidual::JacobianUnused(const double* phi, const Eigen::VectorXd& r) const {
-  if (iteration_ < 1) return false;  // the start's Jacobian sets Levenberg–Marquardt's scaling
+bool ProjectedResidual::SkipJacobian(const double* phi, const Eigen::VectorXd& r, double* residuals,
+                                     double* jacobian) const {
+  // Past the start (whose Jacobian sets Levenberg–Marquardt's scaling), Ceres asks for one only
+  // at a point it has just accepted.
+  if (iteration_ < 1) return false;
   if (stop_ && stop_(phi, 0.5 * r.squaredNorm())) {
     stopped_ = true;
-    return true;
+  } else if (measure_step_ || iteration_ < last_iteration_) {
+    return false;
   }
-  return !measure_step_ && iteration_ >= last_iteration_;
+  const auto n = static_cast<Eigen::Index>(r.size());
+  Eigen::Map<Eigen::VectorXd>(residuals, n) = r;
+  Eigen::Map<Eigen::VectorXd>(jacobian, n * model_.parameters()).setZero();
+  jacobian_skipped_ = true;
+  return true;
 }
 
 void ProjectedResidual::Measure(const Eigen::Ref<const Eigen::MatrixXd>& jacobian,

@@ -211,8 +211,9 @@ class ProjectedResidual : public ceres::CostFunction {
   // callbacks and its iteration cap whether to go on. Where it stops right there, that Jacobian
   // is never read: at the cap (`last_iteration`, Ceres' max_num_iterations) of a refinement that
   // keeps no precision (MeasureRemainingStep not asked), or at an accepted point that `stop`
-  // (given its φ and cost ½‖r‖²) ends the fit at. With sensitivities, the Jacobian asked at the
-  // point of the plain run just before is then skipped: the residuals come with a zero Jacobian.
+  // (given its φ and cost ½‖r‖²) ends the fit at. That Jacobian is then skipped (with
+  // sensitivities it would follow the plain run just before; with differences, the residuals
+  // are run again and the P probes spared): the residuals come with a zero Jacobian.
   // An IterationCallback must report each finished iteration (IterationFinished) and end the
   // fit once stopped(); jacobian_skipped() tells that the latest Jacobian was not computed
   // (jacobian_point() is then an earlier point's).
@@ -238,8 +239,10 @@ class ProjectedResidual : public ceres::CostFunction {
   mutable int iteration_ = 0;  // the iteration in progress
   mutable bool stopped_ = false;
   mutable bool jacobian_skipped_ = false;
-  // Whether the Jacobian at an accepted point φ with residuals r would never be read (EndEarly).
-  bool JacobianUnused(const double* phi, const Eigen::VectorXd& r) const;
+  // Where the Jacobian at φ (residuals r) would never be read (EndEarly): writes r and a zero
+  // Jacobian and returns true.
+  bool SkipJacobian(const double* phi, const Eigen::VectorXd& r, double* residuals,
+                    double* jacobian) const;
   // With sensitivities, the latest plain evaluation (not yet followed by a Jacobian there): its
   // point φ, torques, residuals and each record's run, which the Jacobian that
   // Levenberg–Marquardt asks for after accepting that point follows instead of running again.
