@@ -2,7 +2,7 @@
 # Sets up (packages, configure, build) and runs the whole test suite, then the checks CI adds:
 # format drift (check_format.sh), clang-tidy on the library and CLI sources (tidy.sh), the tests
 # under ASan+UBSan (sanitize.sh: clang-14, build-asan, which also builds the libFuzzer harnesses)
-# and a short libFuzzer run of every parser harness (fuzz.sh, 10 s each). The plain tests run
+# and a short libFuzzer run of every parser harness (fuzz.sh, 5 s each). The plain tests run
 # first. Each stage prints its time; a failing stage does not stop the later ones, and the run
 # ends with the list of failed stages and exit 1. STAGES picks the extra checks (default all
 # four, "format tidy sanitize fuzz"; STAGES= for the plain build and tests only); fuzz runs the
