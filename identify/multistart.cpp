@@ -63,7 +63,7 @@ class CloseEnough final : public ceres::IterationCallback {
 // Reports each finished iteration to the residual (ProjectedResidual::EndEarly), and, given a
 // known minimum, ends Levenberg–Marquardt at the first current point within options.rejoin_se of
 // it (the length of the difference in φ under the minimum's precision) whose χ² (twice the
-// fixed-weight cost) is not below the minimum's by more than 1. The residual tests an accepted
+// fixed-weight cost) is not below the minimum's by more than 1. The residual tests every accepted
 // point before its Jacobian (which the fit then never reads); the start is tested here.
 class EarlyEnd final : public ceres::IterationCallback {
  public:
@@ -84,7 +84,7 @@ class EarlyEnd final : public ceres::IterationCallback {
     residual_.IterationFinished(summary.iteration);
     const std::vector<double>& at = residual_.jacobian_point();
     if (residual_.stopped() ||
-        (known_ != nullptr && summary.step_is_successful && !residual_.jacobian_skipped() &&
+        (known_ != nullptr && summary.iteration == 0 &&
          static_cast<Eigen::Index>(at.size()) == phi_.size() && Rejoins(at.data(), summary.cost))) {
       rejoined_ = true;
       return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
