@@ -36,7 +36,13 @@
 // transient has decayed; the short substeps that still do not clear get the Taylor search. A
 // surface's bound reads the acceleration through its own row (|R_w| E_j |m v|, E_j bounding
 // exp(m s) entry by entry), so a fast mode the surface reads only through slow couplings does not
-// hold it near zero at the finest level (a tiny gap beside a stiff oscillation). The
+// hold it near zero at the finest level (a tiny gap beside a stiff oscillation). Where that
+// bound fails too, the fast decaying modes of m (real eigenvalues λ h <= −kFastModeRate: a heavy
+// damper between two masses) are taken apart and each bounded by its size, since it only decays;
+// the rest is expanded in powers of σ m (FastModesClear). A surface reading the difference of two
+// speeds that accelerate together is then bounded by that difference, not by their common
+// acceleration, and the fast mode's roundoff (which every derivative multiplies by its rate)
+// only by its size. The
 // cost is O(log ‖m‖ h) per step and per transient, the cache of phase data is bounded in bytes,
 // and a surface that never clears ends the run with a reason (kMaxStiffSubsteps), never a hang.
 // The substeps' sum is compensated (a drift below the state's ulp is kept), and a surface held
@@ -45,6 +51,7 @@
 // The run itself (output times, breakpoints, classification at events, the escape from a
 // degenerate switch, the summary) is the hybrid driver's (hybrid_driver.h); this file is its
 // per-phase-set integrator.
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -104,6 +111,12 @@ constexpr double kGrowthBaseNorm = 0.125;
 constexpr size_t kMaxCacheBytes = size_t{64} << 20;
 // Ulps of rounding per entry of a ladder propagator (built in long double, rounded once).
 constexpr double kLadderUlps = 4.0;
+// A real eigenvalue of m with λ h <= −kFastModeRate is a fast mode: where the stiff substeps'
+// entry-by-entry bounds fail, it is taken apart and bounded by its size (it decays), not by its
+// curvature (FastModesClear).
+constexpr double kFastModeRate = 64.0;
+// Orders of the slow rest's expansion in that bound (each reads one more product with m).
+constexpr int kFastOrders = 3;
 // Stiff substeps in a row that may end with one watched surface past zero but within its crossing
 // tolerance, moving across and not cleared by the bounds, before that is taken as its crossing
 // (StiffAdvance: a surface held there by the rounding of a heavily damped motion).
@@ -292,6 +305,14 @@ struct PhaseData {
   // |g_w''| <= (|R_w| E_j) |m v| over a substep: far below ‖R_w‖₁ sup ‖exp(m s)‖∞ ‖m v‖∞ where
   // the fast motion is in components that a surface reads only through slow couplings.
   std::vector<double> ladder_reach;
+  // The fast modes (kFastModeRate), built on first need by FastModesClear: simple real
+  // eigenvalues λ_i, their right eigenvectors v_i (‖v_i‖∞ = 1) and left ones w_i (w_i · v_i = 1)
+  // over the active components, each active_stride_ long; and per level j, surface w and mode i
+  // (index (j · surfaces + w) · fast_count + i) a bound of |R_w exp(m s) v_i| for s <= σ_j:
+  // |R_w v_i| + σ_j (|R_w| E_j) |m v_i − λ_i v_i| (the eigenvector's residual, moved by exp).
+  bool fast_built = false;
+  int fast_count = 0;
+  std::vector<double> fast_right, fast_left, fast_reach;
   int level = 0;                 // the substep level last taken
   std::vector<double> row_norm;  // ‖R_w‖₁ per watched surface
   size_t bytes = 0;              // approximate memory held
@@ -566,6 +587,17 @@ class ExactIntegrator final : public ModeIntegrator {
     }
     return norm;
   }
+  // Finds a stiff phase set's fast modes (PhaseData::fast_*); none where m has no simple, well
+  // separated real eigenvalue below −kFastModeRate / h with a well-conditioned eigenvector.
+  void BuildFastModes(PhaseData* data);
+  // Whether watched surface w keeps clear of zero over a stiff substep at `level` (length σ) by
+  // the chord bound with the fast modes apart: |g''(s)| = |R_w exp(m s) a|, a = m v at the
+  // substep's start, split as Σ c_i v_i + r, each mode bounded by its size, the rest by
+  // sup|R_w exp(m s) r| <= |R_w r| + σ sup|R_w exp(m s) m r| to order kFastOrders (m r split
+  // again), the last order by |R_w| E_j |r|. `margin` is min(g(0), g(σ)) plus the tolerance.
+  // The chain of split vectors does not depend on w: it is built once a substep (*chain_built).
+  bool FastModesClear(PhaseData* data, int level, double sigma, int w, double margin,
+                      bool* chain_built);
   // Whether surface w cannot move: no component that reaches it moves (v = 0 there).
   bool StaticSurface(PhaseData* data, int w, const double* v);
   // Per watched surface: the crossing tolerance at states y and y1, kCrossingTolerance times
@@ -648,6 +680,8 @@ class ExactIntegrator final : public ModeIntegrator {
   std::vector<double> stiff_tolerance_;
   std::vector<double> stiff_carry_, stiff_carry1_;
   std::vector<char> stiff_bounded_out_;
+  // FastModesClear's chain, per order k: the rest r_k, the modes' coefficients and R r_k.
+  std::vector<double> fast_rest_, fast_coefficients_, fast_rows_, fast_next_;
   std::vector<std::uint64_t> moving_;
   // Output map of kept samples: speed of each scene mass, twist of each flexible scene link.
   std::vector<int> speed_index_;
@@ -940,6 +974,137 @@ void ExactIntegrator::BuildLadder(PhaseData* data) {
   ++summary_->phase_sets;
 }
 
+void ExactIntegrator::BuildFastModes(PhaseData* data) {
+  data->fast_built = true;
+  const int a = active_, as = active_stride_;
+  Eigen::MatrixXd& m = build_m_;
+  data->m_active.CopyTo(&m);
+  if (!m.allFinite()) return;
+  const Eigen::EigenSolver<Eigen::MatrixXd> right(m);
+  const Eigen::EigenSolver<Eigen::MatrixXd> left(m.transpose());
+  if (right.info() != Eigen::Success || left.info() != Eigen::Success) return;
+  const Eigen::VectorXcd& values = right.eigenvalues();
+  const Eigen::VectorXcd& left_values = left.eigenvalues();
+  std::vector<double> lambdas;
+  for (int i = 0; i < a; ++i) {
+    const double lambda = values[i].real();
+    if (values[i].imag() != 0.0 || !(lambda * h_ <= -kFastModeRate)) continue;
+    // Simple and well separated (|λ_i − λ_k| >= 1e-3 |λ_i|), so that its eigenvectors are
+    // well determined; the left one is m^T's eigenvector of the nearest eigenvalue.
+    bool separated = true;
+    int match = -1;
+    double nearest = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < a && separated; ++k) {
+      if (k != i && std::abs(values[k] - values[i]) < 1e-3 * std::abs(lambda)) separated = false;
+      const double distance = std::abs(left_values[k] - values[i]);
+      if (distance < nearest) {
+        nearest = distance;
+        match = k;
+      }
+    }
+    if (!separated || match < 0 || left_values[match].imag() != 0.0 ||
+        !(nearest <= 1e-6 * std::abs(lambda))) {
+      continue;
+    }
+    Eigen::VectorXd v = right.eigenvectors().col(i).real();
+    Eigen::VectorXd u = left.eigenvectors().col(match).real();
+    const double size = v.cwiseAbs().maxCoeff();
+    if (!(size > 0.0)) continue;
+    v /= size;
+    const double product = u.dot(v);
+    // The mode's condition number ‖u‖₁ ‖v‖∞ / |u · v|: an ill-conditioned split could move
+    // slow motion into the fast part and back; such a mode stays with the rest.
+    if (!(std::abs(product) * 1e8 >= u.cwiseAbs().sum())) continue;
+    u /= product;
+    data->fast_right.resize(static_cast<size_t>(data->fast_count + 1) * as, 0.0);
+    data->fast_left.resize(static_cast<size_t>(data->fast_count + 1) * as, 0.0);
+    for (int k = 0; k < a; ++k) {
+      data->fast_right[static_cast<size_t>(data->fast_count) * as + k] = v[k];
+      data->fast_left[static_cast<size_t>(data->fast_count) * as + k] = u[k];
+    }
+    lambdas.push_back(lambda);
+    ++data->fast_count;
+  }
+  const int nf = data->fast_count;
+  if (nf == 0) return;
+  const int count = static_cast<int>(data->watched.size());
+  const int levels = static_cast<int>(data->ladder.size());
+  Eigen::MatrixXd rows;
+  data->rows.CopyTo(&rows);
+  data->fast_reach.assign(static_cast<size_t>(levels) * count * nf, 0.0);
+  for (int i = 0; i < nf; ++i) {
+    const Eigen::Map<const Eigen::VectorXd> v(&data->fast_right[static_cast<size_t>(i) * as], a);
+    const Eigen::VectorXd residual = (m * v - lambdas[i] * v).cwiseAbs();
+    const Eigen::VectorXd read = rows.leftCols(a) * v;
+    for (int j = 0; j < levels; ++j) {
+      const double sigma = std::ldexp(h_, -j);
+      for (int w = 0; w < count; ++w) {
+        const double* reach = &data->ladder_reach[(static_cast<size_t>(j) * count + w) * as];
+        double moved = 0.0;
+        for (int k = 0; k < a; ++k) moved += reach[k] * residual[k];
+        data->fast_reach[(static_cast<size_t>(j) * count + w) * nf + i] =
+            std::abs(read[w]) + sigma * moved;
+      }
+    }
+  }
+  const size_t bytes =
+      sizeof(double) * (data->fast_right.size() + data->fast_left.size() + data->fast_reach.size());
+  data->bytes += bytes;
+  cache_bytes_ += bytes;
+}
+
+bool ExactIntegrator::FastModesClear(PhaseData* data, int level, double sigma, int w, double margin,
+                                     bool* chain_built) {
+  if (!data->fast_built) BuildFastModes(data);
+  const int nf = data->fast_count;
+  if (nf == 0) return false;
+  const int as = active_stride_;
+  const int count = static_cast<int>(data->watched.size());
+  const int ld = data->rows.ld();
+  if (!*chain_built) {
+    *chain_built = true;
+    fast_rest_.assign(static_cast<size_t>(kFastOrders + 1) * stride_, 0.0);
+    fast_coefficients_.assign(static_cast<size_t>(kFastOrders + 1) * nf, 0.0);
+    fast_rows_.assign(static_cast<size_t>(kFastOrders + 1) * ld, 0.0);
+    fast_next_.assign(as, 0.0);
+    const double* x = stiff_a_.data();  // a = m v, then m r_k
+    for (int k = 0; k <= kFastOrders; ++k) {
+      double* rest = &fast_rest_[static_cast<size_t>(k) * stride_];
+      std::copy(x, x + as, rest);
+      for (int i = 0; i < nf; ++i) {
+        const double* left = &data->fast_left[static_cast<size_t>(i) * as];
+        const double* right = &data->fast_right[static_cast<size_t>(i) * as];
+        double c = 0.0;
+        for (int j = 0; j < as; ++j) c += left[j] * x[j];
+        fast_coefficients_[static_cast<size_t>(k) * nf + i] = c;
+        for (int j = 0; j < as; ++j) rest[j] -= c * right[j];
+      }
+      data->rows.Apply(rest, &fast_rows_[static_cast<size_t>(k) * ld]);
+      if (k < kFastOrders) {
+        data->m_active.Apply(rest, fast_next_.data());
+        x = fast_next_.data();
+      }
+    }
+  }
+  // B_k = Σ_i |c_ki| (mode bound) + |R_w r_k| + σ B_{k+1}, closed at order K by |R_w| E_j |r_K|;
+  // every order is a bound: the least is taken.
+  const double* reach = &data->ladder_reach[(static_cast<size_t>(level) * count + w) * as];
+  const double* modes = &data->fast_reach[(static_cast<size_t>(level) * count + w) * nf];
+  double sum = 0.0, scale = 1.0, best = std::numeric_limits<double>::infinity();
+  for (int k = 0; k <= kFastOrders; ++k) {
+    for (int i = 0; i < nf; ++i) {
+      sum += scale * std::abs(fast_coefficients_[static_cast<size_t>(k) * nf + i]) * modes[i];
+    }
+    const double* rest = &fast_rest_[static_cast<size_t>(k) * stride_];
+    double closing = 0.0;
+    for (int i = 0; i < active_; ++i) closing += reach[i] * std::abs(rest[i]);
+    best = std::min(best, sum + scale * closing);
+    sum += scale * std::abs(fast_rows_[static_cast<size_t>(k) * ld + w]);
+    scale *= sigma;
+  }
+  return margin - best * sigma * sigma * 0.125 >= 0.0;
+}
+
 bool ExactIntegrator::StaticSurface(PhaseData* data, int w, const double* v) {
   std::fill(moving_.begin(), moving_.end(), 0);
   for (int i = 0; i < n_; ++i) {
@@ -1035,7 +1200,12 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
     return true;
   };
   double done = 0.0;
-  int level = std::clamp(data->level, 0, search);
+  // The level the bounds ask for (halved where they failed, one coarser after each substep taken
+  // at it), apart from the level a substep takes to fit in what is left of the step: the binary
+  // remainder of a step that began at a fine level must not hold the next step there (a step
+  // begun at level L took L substeps climbing and a last one at L, and so did every step after).
+  int wanted = std::clamp(data->level, 0, search);
+  const double time_slack = 8 * kEps * std::max(std::abs(t) + tau, h_);
   long substeps = 0;
   while (done < tau) {
     if (++stiff_substeps_ > kMaxStiffSubstepsPerRun) {
@@ -1059,12 +1229,16 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
     }
     // The coarsest level that fits in what is left; below the finest one, the rest is one
     // Taylor substep (the ladder's levels sum to any step in binary, and only the finest
-    // remainder needs a propagator of its own).
+    // remainder needs a propagator of its own). What is left is known to the roundoff of the
+    // times (a step between output times is h to a few ulps of t, as for the cached step): a
+    // level within that of it ends the step, where a relative test took the step's rounding for
+    // a remainder and cut every output step into one substep per level.
     const double remaining = tau - done;
-    while (level < search && std::ldexp(h_, -level) > remaining * (1.0 + 4 * kEps)) ++level;
+    int level = wanted;
+    while (level < search && std::ldexp(h_, -level) > remaining + time_slack) ++level;
     const double sigma_level = std::ldexp(h_, -level);
-    const bool taylor = sigma_level > remaining * (1.0 + 4 * kEps);
-    const bool last = taylor || sigma_level >= remaining * (1.0 - 4 * kEps);
+    const bool taylor = sigma_level > remaining + time_slack;
+    const bool last = taylor || sigma_level >= remaining - time_slack;
     const double sigma = taylor ? remaining : sigma_level;
     if (taylor) {
       ExpandStep(*data, ys.data(), vs.data(), sigma, y1, v1);
@@ -1088,6 +1262,7 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
     const double chord = data->ladder_growth[level] * a_norm * sigma * sigma * 0.125;
     Tolerances(*data, ys.data(), y1, &stiff_tolerance_);
     stiff_candidates_.clear();
+    bool chain_built = false;
     for (int w = 0; w < count; ++w) {
       const double lower = std::min(gs[w], end[w]);
       if (lower - data->row_norm[w] * chord + stiff_tolerance_[w] >= 0.0) continue;
@@ -1096,6 +1271,9 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
       double sharp = 0.0;
       for (int i = 0; i < active_; ++i) sharp += reach[i] * std::abs(acc[i]);
       if (lower - sharp * sigma * sigma * 0.125 + stiff_tolerance_[w] >= 0.0) continue;
+      if (FastModesClear(data, level, sigma, w, lower + stiff_tolerance_[w], &chain_built)) {
+        continue;
+      }
       if (end[w] >= -stiff_tolerance_[w] && StaticSurface(data, w, vs.data())) continue;
       if (Ignored(data->watched[w].index)) continue;
       stiff_candidates_.push_back(w);
@@ -1111,17 +1289,17 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
             v_norm * (data->ladder_defect[level] + kEps * data->norm_inf * sigma * sigma);
       }
       if (crossing_on_surface(t + done + sigma)) {
-        *tau_event = done + sigma;
-        data->level = level;
+        *tau_event = std::min(done + sigma, tau);  // (a last substep may pass τ by time_slack)
+        data->level = wanted;
         return true;
       }
       accept();
       done = last ? tau : done + sigma;
-      if (level > 0 && !last) --level;
+      if (level == wanted && wanted > 0 && !last) --wanted;
       continue;
     }
     if (data->norm_inf * sigma > kSearchPieces) {  // (then level < search) halve and try again
-      ++level;
+      wanted = level + 1;
       continue;
     }
     // Short enough for the exact search on the step's Taylor series.
@@ -1134,21 +1312,21 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
     int piece = 0;
     double s = 0.0;
     if (FindEvent(*data, stiff_candidates_, stiff_tolerance_, resolution_s, &piece, &s, crossed)) {
-      *tau_event = done + (piece + s) * series_.dt;
+      *tau_event = std::min(done + (piece + s) * series_.dt, tau);
       EvaluateSeries(piece, s, y1, v1);
-      data->level = level;
+      data->level = wanted;
       return true;
     }
     data->observe.Apply(y1, end);
     if (crossing_on_surface(t + done + sigma)) {
-      *tau_event = done + sigma;
-      data->level = level;
+      *tau_event = std::min(done + sigma, tau);
+      data->level = wanted;
       return true;
     }
     accept();
     done = last ? tau : done + sigma;
   }
-  data->level = level;
+  data->level = wanted;
   return false;
 }
 
