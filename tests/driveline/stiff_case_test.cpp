@@ -259,9 +259,9 @@ TEST_CASE("Stiff runs whose switching surfaces stay near zero answer in few subs
 
 TEST_CASE("A heavily damped coupling's fast mode is bounded by its size, not its curvature",
           "[hard][stiff]") {
-  // 2593 (fuzzer input 21 0a) and 0x105d (input 5d 10): couplings damped at 9.4e9 and more
-  // between masses turning together. The torque surface reads their speeds' difference 3e8
-  // times; the entry-by-entry bound read their common acceleration (3e13 each) instead, and the
+  // 2593 (fuzzer input 21 0a) and 0x105d (input 5d 10): couplings damped at 9.4e9 and 3.7e9
+  // N·m·s/rad between masses turning together. The torque surface reads their speeds' difference
+  // 3e8 times; the entry-by-entry bound read their common acceleration (3e13 each) instead, and the
   // substeps fell to h/512 while the surface stayed a hundred tolerances from zero: 1.7 million
   // substeps each (0.3-0.5 s). With the damper's fast mode apart (it decays, so its part of the
   // surface's curvature is bounded by its size) and the rest expanded to third order: 55429 and
