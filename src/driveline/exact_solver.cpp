@@ -1271,11 +1271,11 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
       double sharp = 0.0;
       for (int i = 0; i < active_; ++i) sharp += reach[i] * std::abs(acc[i]);
       if (lower - sharp * sigma * sigma * 0.125 + stiff_tolerance_[w] >= 0.0) continue;
+      if (end[w] >= -stiff_tolerance_[w] && StaticSurface(data, w, vs.data())) continue;
+      if (Ignored(data->watched[w].index)) continue;
       if (FastModesClear(data, level, sigma, w, lower + stiff_tolerance_[w], &chain_built)) {
         continue;
       }
-      if (end[w] >= -stiff_tolerance_[w] && StaticSurface(data, w, vs.data())) continue;
-      if (Ignored(data->watched[w].index)) continue;
       stiff_candidates_.push_back(w);
       bounded_out[w] = 1;
     }
