@@ -607,9 +607,13 @@ class ExactIntegrator final : public ModeIntegrator {
   void Tolerances(const PhaseData& data, const double* y, const double* y1,
                   std::vector<double>* tolerance) {
     const int count = static_cast<int>(data.watched.size());
-    size_scratch_.assign(stride_, 0.0);
+    // Sized, not cleared (this runs on every step and substep): entries from active_ on stay
+    // zero, and Apply writes every entry of the terms it reads.
+    size_scratch_.resize(stride_, 0.0);
     for (int i = 0; i < active_; ++i) size_scratch_[i] = std::max(std::abs(y[i]), std::abs(y1[i]));
-    terms_scratch_.assign(std::max(data.abs_rows.ld(), 4), 0.0);
+    if (terms_scratch_.size() < static_cast<size_t>(data.abs_rows.ld())) {
+      terms_scratch_.resize(data.abs_rows.ld());
+    }
     data.abs_rows.Apply(size_scratch_.data(), terms_scratch_.data());
     tolerance->resize(count);
     for (int w = 0; w < count; ++w) {
