@@ -2,6 +2,8 @@
 #include "numerics/exp_phi.h"
 
 #include <catch2/catch.hpp>
+#include <cmath>
+#include <limits>
 #include <random>
 #include <unsupported/Eigen/MatrixFunctions>
 
@@ -56,5 +58,35 @@ TEST_CASE("exp(Aτ) and τ φ1(Aτ) match the block-matrix exponential, with and
       CHECK(RelativeInf(s, s_ref) <= kTolerance);
       CHECK(RelativeInf(phi, phi_ref) <= kTolerance);
     }
+  }
+}
+
+TEST_CASE("The ladder's long-double product matches Eigen's within the rounding of its sums",
+          "[numerics]") {
+  // Odd and even row counts (the product takes rows in pairs and one left over), a single entry,
+  // and non-square shapes. Both sum the same products in long double in different orders, so
+  // each entry may differ by the rounding of a sum of `inner` terms: inner · ε · Σ|a_ik b_kj|.
+  using Matrix = Eigen::Matrix<long double, Eigen::Dynamic, Eigen::Dynamic>;
+  const long double epsilon = std::numeric_limits<long double>::epsilon();
+  std::mt19937 random(11);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  const int shapes[][3] = {{1, 1, 1}, {2, 3, 2}, {5, 5, 5}, {9, 7, 4}, {11, 11, 11}, {24, 24, 24}};
+  for (const auto& shape : shapes) {
+    Matrix a(shape[0], shape[1]), b(shape[1], shape[2]);
+    for (Eigen::Index k = 0; k < a.size(); ++k) a.data()[k] = std::ldexp(uniform(random), k % 40);
+    for (Eigen::Index k = 0; k < b.size(); ++k)
+      b.data()[k] = std::ldexp(uniform(random), -(k % 30));
+    Matrix c, work;
+    millkit::numerics::MultiplyLongDouble(a, b, &c, &work);
+    const Matrix reference = a * b;
+    const Matrix bound = shape[1] * epsilon * (a.cwiseAbs() * b.cwiseAbs());
+    INFO(shape[0] << " x " << shape[1] << " times " << shape[1] << " x " << shape[2]);
+    REQUIRE(c.rows() == shape[0]);
+    REQUIRE(c.cols() == shape[2]);
+    CHECK(((c - reference).cwiseAbs().array() <= bound.array()).all());
+    // Not a copy of the reference by accident: a changed entry of a moves a row of c.
+    a(shape[0] - 1, 0) += 1.0L;
+    millkit::numerics::MultiplyLongDouble(a, b, &c, &work);
+    CHECK(c.row(shape[0] - 1) != reference.row(shape[0] - 1));
   }
 }
