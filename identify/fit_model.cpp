@@ -52,6 +52,7 @@ FitModel::FitModel(const driveline::Scene& scene, const std::vector<Oscillogram>
 }
 
 void FitModel::SetStage(double divisor) {
+  jacobian_memo_.valid = false;  // another window
   int offset = 0;
   for (auto& b : blocks_) {
     const auto& record = records_[b.record];
@@ -380,9 +381,46 @@ double FitModel::ProjectedCost(const double* u) const {
   return 0.5 * r.squaredNorm();
 }
 
+bool FitModel::JacobianMemo::Matches(const std::vector<double>& at,
+                                     const std::vector<Nuisance>& with, double h,
+                                     Derivatives kind) const {
+  if (!valid || at != u || h != step || kind != derivatives || with.size() != nuisance.size()) {
+    return false;
+  }
+  for (size_t b = 0; b < with.size(); ++b) {
+    const Nuisance &x = with[b], &y = nuisance[b];
+    if (x.gain != y.gain || x.offset_Nm != y.offset_Nm || x.gain_at_bound != y.gain_at_bound ||
+        x.offset_at_bound != y.offset_at_bound) {
+      return false;
+    }
+  }
+  return true;
+}
+
 bool FitModel::FullJacobian(const std::vector<double>& u, const std::vector<Nuisance>& nuisance,
                             double step, Derivatives derivatives, Eigen::VectorXd* r,
                             Eigen::MatrixXd* jacobian) const {
+  JacobianMemo& memo = jacobian_memo_;
+  if (memo.Matches(u, nuisance, step, derivatives)) {
+    *r = memo.r;
+    *jacobian = memo.jacobian;
+    return true;
+  }
+  memo.valid = false;
+  if (!FullJacobianAnew(u, nuisance, step, derivatives, r, jacobian)) return false;
+  memo.u = u;
+  memo.nuisance = nuisance;
+  memo.step = step;
+  memo.derivatives = derivatives;
+  memo.r = *r;
+  memo.jacobian = *jacobian;
+  memo.valid = true;
+  return true;
+}
+
+bool FitModel::FullJacobianAnew(const std::vector<double>& u, const std::vector<Nuisance>& nuisance,
+                                double step, Derivatives derivatives, Eigen::VectorXd* r,
+                                Eigen::MatrixXd* jacobian) const {
   std::vector<Eigen::VectorXd> m;
   std::vector<Eigen::MatrixXd> dm;
   bool exact = false;  // the scene columns from the sensitivities

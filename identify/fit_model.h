@@ -165,6 +165,10 @@ class FitModel {
                const std::vector<Eigen::MatrixXd>& derivatives,
                std::vector<Eigen::MatrixXd>* dm) const;
   int StageEnd(const Block& b, double divisor) const;
+  // FullJacobian computed (it looks up the last one first).
+  bool FullJacobianAnew(const std::vector<double>& u, const std::vector<Nuisance>& nuisance,
+                        double step, Derivatives derivatives, Eigen::VectorXd* r,
+                        Eigen::MatrixXd* jacobian) const;
   double OnsetTime(int r) const;
 
   const driveline::Scene& scene_;
@@ -182,6 +186,28 @@ class FitModel {
   std::function<void(const std::string&, long)> progress_;
   mutable std::string activity_ = "starting";
   mutable std::string last_failure_;
+  // The last FullJacobian, its arguments and results: the search asks for it at the best minimum
+  // for the basin hops, the curved valleys and the report, usually at the same point (the
+  // same bits as computing it again: the model keeps no other state that it reads). Not
+  // copied: a worker's copy starts without it.
+  struct JacobianMemo {
+    JacobianMemo() = default;
+    JacobianMemo(const JacobianMemo&) {}
+    JacobianMemo& operator=(const JacobianMemo&) {
+      valid = false;
+      return *this;
+    }
+    bool Matches(const std::vector<double>& at, const std::vector<Nuisance>& with, double h,
+                 Derivatives kind) const;
+    bool valid = false;
+    std::vector<double> u;
+    std::vector<Nuisance> nuisance;
+    double step = 0.0;
+    Derivatives derivatives = Derivatives::kSensitivity;
+    Eigen::VectorXd r;
+    Eigen::MatrixXd jacobian;
+  };
+  mutable JacobianMemo jacobian_memo_;
 };
 
 // The projected misfit as one Ceres residual block over the angles φ of the scene parameters.

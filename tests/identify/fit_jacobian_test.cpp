@@ -116,6 +116,53 @@ TEST_CASE("The covariance's Jacobian from sensitivities agrees with central diff
   CHECK(differing == compared);
 }
 
+// The search asks for the covariance's Jacobian at the best minimum up to three times: the
+// second ask at the same point takes no simulation and gives the same bits as computing it
+// again (a copy of the model, which starts without the memo); another point, another kind of
+// derivative or another window is computed.
+TEST_CASE("The covariance's Jacobian at the point just asked is not computed again", "[fit]") {
+  const auto line = identify::MakeRandomLineCase(51);
+  const std::vector<double> weights(line.config.channels.size(), 1.0);
+  const std::vector<identify::Oscillogram> records{line.record};
+  identify::FitModel model(line.prior, records, line.config, weights);
+  std::vector<double> u(model.parameters(), 0.4);
+  Eigen::VectorXd r;
+  std::vector<identify::Nuisance> nuisance;
+  REQUIRE(model.ProjectedResiduals(u.data(), &r, &nuisance));
+  const auto jacobian = [&](const identify::FitModel& m, const std::vector<double>& at,
+                            identify::Derivatives kind, Eigen::VectorXd* residuals,
+                            Eigen::MatrixXd* j) {
+    const long before = m.simulations();
+    REQUIRE(m.FullJacobian(at, nuisance, 1e-6, kind, residuals, j));
+    return m.simulations() - before;
+  };
+  const auto sensitivity = identify::Derivatives::kSensitivity;
+  Eigen::VectorXd r1, r2, r3;
+  Eigen::MatrixXd j1, j2, j3;
+  CHECK(jacobian(model, u, sensitivity, &r1, &j1) > 0);
+  CHECK(jacobian(model, u, sensitivity, &r2, &j2) == 0);
+  CHECK(r2 == r1);
+  CHECK(j2 == j1);
+  const identify::FitModel copy = model;
+  CHECK(jacobian(copy, u, sensitivity, &r3, &j3) > 0);
+  CHECK(r3 == r1);
+  CHECK(j3 == j1);
+  // Another kind of derivative, then another point, then the first point again: each computed.
+  CHECK(jacobian(model, u, identify::Derivatives::kCentral, &r3, &j3) > 0);
+  std::vector<double> moved = u;
+  moved[0] = 0.41;
+  CHECK(jacobian(model, moved, sensitivity, &r3, &j3) > 0);
+  CHECK(j3 != j1);
+  CHECK(jacobian(model, u, sensitivity, &r3, &j3) > 0);
+  CHECK(j3 == j1);
+  // Another window: the residuals are those of the stage, not the memo's.
+  model.SetStage(4.0);
+  REQUIRE(model.residuals() < r1.size());
+  CHECK(jacobian(model, u, sensitivity, &r3, &j3) > 0);
+  CHECK(r3.size() == model.residuals());
+  CHECK(j3.rows() == model.residuals());
+}
+
 // A plain run streams only the channels' link torques; a run with sensitivities keeps every
 // sample. Both go through the recorder filter of the bundled record's channels: the same
 // channel samples, bit for bit.
