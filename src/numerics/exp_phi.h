@@ -75,17 +75,13 @@ inline void ExpAndPhi1(const Eigen::MatrixXd& a, double tau, Eigen::MatrixXd* s,
   }
 }
 
-// The same matrices over τ / 2^j for every level j = 0 … levels, for a stiff A (‖A τ‖ ≫ 1): the
-// exact solver's propagator ladder. Computed in long double (64-bit mantissa) and rounded once to
-// double: every doubling multiplies the error of the level below by about ‖S‖, and a stiff,
-// non-normal A needs 30 or more of them, which in double left relative errors near 1e-7 in S
-// (measured against a long double Padé reference on a coupling damped at d/J = 1e12).
 // c = a b in long double for the ladder's small matrices: each entry a dot product of a row of a
 // (from a transposed copy, so both operands are contiguous) with a column of b, two rows at a
 // time. Eigen's blocked product is not vectorised for long double and spends its time packing;
 // this takes about 0.6 of its time at 9–24 rows. c must not alias a or b; at is work space.
-template <typename Matrix>
-void MultiplyLongDouble(const Matrix& a, const Matrix& b, Matrix* c, Matrix* at) {
+using LongDoubleMatrix = Eigen::Matrix<long double, Eigen::Dynamic, Eigen::Dynamic>;
+inline void MultiplyLongDouble(const LongDoubleMatrix& a, const LongDoubleMatrix& b,
+                               LongDoubleMatrix* c, LongDoubleMatrix* at) {
   const Eigen::Index n = a.rows(), inner = a.cols(), cols = b.cols();
   *at = a.transpose();
   c->resize(n, cols);
@@ -112,10 +108,15 @@ void MultiplyLongDouble(const Matrix& a, const Matrix& b, Matrix* c, Matrix* at)
   }
 }
 
+// The same matrices over τ / 2^j for every level j = 0 … levels, for a stiff A (‖A τ‖ ≫ 1): the
+// exact solver's propagator ladder. Computed in long double (64-bit mantissa) and rounded once to
+// double: every doubling multiplies the error of the level below by about ‖S‖, and a stiff,
+// non-normal A needs 30 or more of them, which in double left relative errors near 1e-7 in S
+// (measured against a long double Padé reference on a coupling damped at d/J = 1e12).
 inline void ExpAndPhi1Ladder(const Eigen::MatrixXd& a, double tau, int levels,
                              std::vector<Eigen::MatrixXd>* s, std::vector<Eigen::MatrixXd>* phi,
                              int extra_doublings = 0) {
-  using Matrix = Eigen::Matrix<long double, Eigen::Dynamic, Eigen::Dynamic>;
+  using Matrix = LongDoubleMatrix;
   const int n = static_cast<int>(a.rows());
   const Matrix al = a.cast<long double>();
   const long double theta = al.cwiseAbs().colwise().sum().maxCoeff() * std::abs(tau);
