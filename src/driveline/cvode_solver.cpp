@@ -4,10 +4,13 @@
 // phases; at a root the integrator stops, the hybrid driver (hybrid_driver.h) classifies the new
 // phases (the crossed surface's new side is the root's direction) and CVODE is reinitialised.
 // Input breakpoints are stop times; CVODE steps past an output time and interpolates back.
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <exception>
 #include <limits>
+#include <unordered_map>
 
 #include "driveline/hybrid_driver.h"
 #include "millkit/driveline/simulation.h"
@@ -29,6 +32,12 @@ constexpr double kEps = std::numeric_limits<double>::epsilon();
 // into contact would be missed. With the margin the function starts positive and the crossing
 // is reported a roundoff-sized distance past the surface (the exact solver's kCrossingTolerance).
 constexpr double kCrossingMargin = 1e-13;
+// An output leg of more steps than this, whose last step is longer than kWedgeStep / |λ| for a
+// lightly damped mode λ outside the current BDF order's stability wedge, caps the order
+// (CapOrderWhereStable). An excited mode keeps the step near 0.05 / |λ| at rtol 1e-8 (order 5);
+// one that has decayed lets it grow until the order's instability holds it near 0.6 / |λ|.
+constexpr long kLegSteps = 1000;
+constexpr double kWedgeStep = 0.3;
 
 // Everything the C callbacks read. Callbacks are noexcept and report failure by return code.
 struct Problem {
@@ -162,8 +171,11 @@ class CvodeIntegrator final : public ModeIntegrator {
         stop_ = stop;
       }
       double reached = t;
+      long steps_before = 0;
+      CVodeGetNumSteps(memory_.get(), &steps_before);
       const int flag = CVode(memory_.get(), tout, y_.get(), &reached, CV_NORMAL);
       t_ = reached;
+      if (flag >= 0 && flag != CV_ROOT_RETURN) CapOrderWhereStable(steps_before);
       end->t = reached;
       end->elapsed = reached - t;
       if (flag == CV_ROOT_RETURN) {
@@ -201,6 +213,7 @@ class CvodeIntegrator final : public ModeIntegrator {
 
   void Switch(const Phases& phases, double t) override {
     phases_ = phases;
+    max_order_ = 5;
     Configure();
     Restart(t);
   }
@@ -212,6 +225,7 @@ class CvodeIntegrator final : public ModeIntegrator {
       problem_.slope[1 + s] = scene.torques[s].SlopeAt(breakpoint);
     }
     problem_.t_segment = t;
+    max_order_ = 5;  // an input's kink may excite the mode again
     Restart(t);
   }
 
@@ -264,7 +278,53 @@ class CvodeIntegrator final : public ModeIntegrator {
            problem_.rows.row(r).tail(nw_).cwiseAbs().dot(problem_.w0.cwiseAbs().cwiseMax(1.0)));
     }
   }
+  // Lightly damped fast modes of the current phases: |λ| and the highest BDF order whose
+  // stability wedge holds λ (orders 3, 4, 5 are A(α)-stable for α = 86.03°, 73.35°, 51.84°;
+  // 1 and 2 A-stable), for the modes that order 5 cannot take.
+  struct WedgeMode {
+    double rate;
+    int order;
+  };
+  const std::vector<WedgeMode>& WedgeModes() {
+    auto found = wedge_modes_.find(phases_);
+    if (found != wedge_modes_.end()) return found->second;
+    std::vector<WedgeMode> modes;
+    Eigen::EigenSolver<Eigen::MatrixXd> solver(problem_.a, false);
+    if (solver.info() == Eigen::Success) {
+      constexpr double kWedge[6] = {0, 90, 90, 86.03, 73.35, 51.84};
+      for (const std::complex<double>& lambda : solver.eigenvalues()) {
+        if (!(lambda.real() < 0.0)) continue;
+        const double angle = std::atan2(std::abs(lambda.imag()), -lambda.real()) * 180.0 / M_PI;
+        int order = 5;
+        while (order > 2 && angle > kWedge[order]) --order;
+        if (order < 5) modes.push_back({std::abs(lambda), order});
+      }
+    }
+    return wedge_modes_.emplace(phases_, std::move(modes)).first->second;
+  }
+  // After a leg of many steps: where CVODE's step has grown past a lightly damped fast mode
+  // (h |λ| > kWedgeStep) that its order cannot damp, the order is capped until the next switch
+  // or input breakpoint. Such a mode has decayed (an excited one keeps the step far
+  // below), and the higher orders' instability on it would hold the step there for the run.
+  void CapOrderWhereStable(long steps_before) {
+    long steps = 0;
+    double h = 0.0;
+    CVodeGetNumSteps(memory_.get(), &steps);
+    if (steps - steps_before < kLegSteps) return;
+    CVodeGetLastStep(memory_.get(), &h);
+    int cap = max_order_;
+    for (const WedgeMode& mode : WedgeModes()) {
+      if (h * mode.rate > kWedgeStep) cap = std::min(cap, mode.order);
+    }
+    if (cap < max_order_) {
+      max_order_ = cap;
+      // From order 1 under the new cap, at the output time just reached: lowering the cap in the
+      // middle of CVODE's history left it stepping by 1e-19 s.
+      Restart(t_);
+    }
+  }
   void SetRoots() {
+    Check(CVodeSetMaxOrd(memory_.get(), max_order_), "CVodeSetMaxOrd");
     Check(CVodeRootInit(memory_.get(), static_cast<int>(problem_.watched.size()),
                         problem_.watched.empty() ? nullptr : Roots),
           "CVodeRootInit");
@@ -311,6 +371,8 @@ class CvodeIntegrator final : public ModeIntegrator {
   double t_ = 0.0;  // CVODE's time
   double stop_ = std::numeric_limits<double>::quiet_NaN();
   std::vector<int> roots_found_;
+  std::unordered_map<Phases, std::vector<WedgeMode>> wedge_modes_;
+  int max_order_ = 5;
   std::string failure_;  // from a restart
   long steps_ = 0, rhs_ = 0, jacobians_ = 0;
 };
