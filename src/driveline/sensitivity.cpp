@@ -119,6 +119,8 @@ struct ParameterModels {
   }
 };
 
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
 // A non-zero entry of a sparse matrix (M̃ follows the line's tree: a few entries per row).
 struct Entry {
   Eigen::Index row, col;
@@ -159,11 +161,9 @@ struct PhaseSet {
   // steps so far exceeds the building's.
   double taylor_work = 0.0;
   bool cached = false;
-  Eigen::MatrixXd e;  // exp(M̃ h)
+  RowMatrix e;        // exp(M̃ h)
   Eigen::MatrixXd f;  // F̃_j(h), stacked
 };
-
-using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 class SensitivityPass final : public HybridObserver {
  public:
@@ -444,8 +444,7 @@ class SensitivityPass final : public HybridObserver {
   // E = Σ A_k, F_j = Σ B_{j,k} (the top right block of the k-th power is Σ_i M̃^i M̃_j M̃^(k−1−i)),
   // the sink rows from the terms' other rows with the weights of SinkWeights, then s squarings of
   // the block matrix: F_j ← E F_j + F_j E, E ← E².
-  void Exponentials(const PhaseSet& data, double tau, Eigen::MatrixXd* e,
-                    Eigen::MatrixXd* f) const {
+  void Exponentials(const PhaseSet& data, double tau, RowMatrix* e, Eigen::MatrixXd* f) const {
     const double norm = data.norm * tau;
     const int squarings =
         norm > 0.5 && std::isfinite(norm) ? static_cast<int>(std::ceil(std::log2(norm / 0.5))) : 0;
@@ -549,11 +548,28 @@ class SensitivityPass final : public HybridObserver {
   // S̃ ← E S̃ + [F̃_j ỹ]: the propagators applied. The inputs depend neither on the state nor
   // on the parameters within a leg, so E's input rows are [0 E_ww] and F̃_j's are zero: only the
   // state rows take the full products (n × n by n × P and nP × n by n, the floor of the pass).
-  void Apply(const Eigen::MatrixXd& e, const Eigen::MatrixXd& f) {
-    const Eigen::Index inputs = n_ - nx_;
-    s_next_.topRows(nx_).noalias() = e.topRows(nx_).lazyProduct(s_);
-    s_next_.bottomRows(inputs).noalias() =
-        e.bottomRightCorner(inputs, inputs).lazyProduct(s_.bottomRows(inputs));
+  // Row i of E S̃ is Σ_k E_ik S̃_k in k order (S̃_k a contiguous row of P), every row's sum
+  // taking its k-th term before any takes its k + 1-th: the rows' sums are independent of each
+  // other, where one row's are a chain.
+  void Apply(const RowMatrix& e, const Eigen::MatrixXd& f) {
+    const Eigen::Index p = p_;
+    const auto row_times = [&](Eigen::Index i, Eigen::Index k, bool first) {
+      const double value = e(i, k);
+      double* to = s_next_.data() + i * p;
+      const double* from = s_.data() + k * p;
+      if (first) {
+        for (Eigen::Index j = 0; j < p; ++j) to[j] = value * from[j];
+      } else {
+        for (Eigen::Index j = 0; j < p; ++j) to[j] += value * from[j];
+      }
+    };
+    // The state rows read every row of S̃; an input row reads only the inputs.
+    for (Eigen::Index i = 0; i < n_; ++i) row_times(i, i < nx_ ? 0 : nx_, true);
+    for (Eigen::Index k = 1; k < n_; ++k) {
+      for (Eigen::Index i = 0; i < nx_; ++i) row_times(i, k, false);
+      if (k <= nx_) continue;
+      for (Eigen::Index i = nx_; i < n_; ++i) row_times(i, k, false);
+    }
     Eigen::Map<Eigen::VectorXd>(s_next_.data(), nx_ * p_).noalias() += f.topRows(nx_ * p_) * y_;
     s_.swap(s_next_);
   }
@@ -603,7 +619,8 @@ class SensitivityPass final : public HybridObserver {
       return;
     }
     if (pieces > kMaxTaylorPieces) {
-      Eigen::MatrixXd e, f;
+      RowMatrix e;
+      Eigen::MatrixXd f;
       Exponentials(data, tau, &e, &f);
       Apply(e, f);
       return;
