@@ -60,7 +60,6 @@ void FitOptions::Validate() const {
   require(profile_relax_reach >= profile_step, "profile_relax_reach: must be >= profile_step");
   require(curved_valley_ratio >= 0.0, "curved_valley_ratio: must be >= 0");
   require(curved_valley_iterations >= 1, "curved_valley_iterations: must be >= 1");
-  require(flat_walk_points >= 0 && flat_walk_points <= 64, "flat_walk_points: must be in [0, 64]");
   require(escalation_factor >= 1, "escalation_factor: must be >= 1");
   require(hops >= 0, "hops: must be >= 0");
   require(hop_radius > 0.0, "hop_radius: must be > 0");

@@ -158,8 +158,7 @@ namespace {
 // and (when asked) the fitted quantities it does not hold (Informative).
 bool FreshCovariance(const FitModel& model, const std::vector<double>& u, double cost,
                      const FitOptions& options, Eigen::MatrixXd* covariance, double* noise_scale,
-                     std::vector<int>* informative = nullptr,
-                     Eigen::MatrixXd* jacobian_out = nullptr) {
+                     std::vector<int>* informative = nullptr) {
   Eigen::VectorXd r;
   std::vector<Nuisance> nuisance;
   Eigen::MatrixXd jacobian;
@@ -173,7 +172,6 @@ bool FreshCovariance(const FitModel& model, const std::vector<double>& u, double
   *noise_scale = std::sqrt(2.0 * cost / dof);
   *covariance = Covariance(jacobian, fitted, *noise_scale);
   if (informative != nullptr) *informative = Informative(jacobian, fitted, *noise_scale);
-  if (jacobian_out != nullptr) *jacobian_out = std::move(jacobian);
   return true;
 }
 
@@ -320,9 +318,8 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
   std::vector<std::vector<double>> lower;
   Eigen::MatrixXd covariance;
   double noise_scale = 0.0;
-  Eigen::MatrixXd jacobian;
   if (!(options.curved_valley_ratio > 0.0) ||
-      !FreshCovariance(model, u, cost, options, &covariance, &noise_scale, nullptr, &jacobian)) {
+      !FreshCovariance(model, u, cost, options, &covariance, &noise_scale)) {
     return lower;
   }
   const int p = model.parameters();
@@ -356,21 +353,6 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
         if (start.empty()) break;
         held.push_back({i, std::move(start)});
       }
-    }
-  }
-  // A parameter the record hardly depends on at the minimum (a gap that never closes there; the
-  // test of EstimateUncertainty: alone, its standard error would exceed unidentifiable_fraction
-  // of its range) has a flat linearisation, which says nothing of the smaller values where it
-  // would matter (a gap that closes): it is held at k / flat_walk_points of where it is in unit
-  // coordinates, the others refitted the same way.
-  const int walk = options.flat_walk_points;
-  for (int i = 0; i < p && i < jacobian.cols() && walk > 0; ++i) {
-    const double norm = jacobian.col(i).norm();
-    if (norm > 0.0 && noise_scale / norm <= options.unidentifiable_fraction) continue;
-    for (int k = 1; k < walk; ++k) {
-      std::vector<double> start(u);
-      start[i] = u[i] * k / walk;
-      held.push_back({i, std::move(start)});
     }
   }
   // A parameter at a bound: the minimum is the bound's, not the misfit's, and its linearisation

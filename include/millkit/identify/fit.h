@@ -157,12 +157,6 @@ struct FitOptions {
   // reaches counts as one no start reached. 0: neither is followed.
   double curved_valley_ratio = 100.0;
   int curved_valley_iterations = 20;
-  // With the curved valleys: a fitted parameter the record hardly depends on at the best minimum
-  // (a gap that never closes there) is held at k / flat_walk_points of its unit coordinate,
-  // k = 1 … flat_walk_points − 1, the others refitted, and a lower point found is refined as
-  // above. The fit may lie in a valley where that gap stays open while a lower one, where it
-  // closes, is narrow in it. 0: none.
-  int flat_walk_points = 8;
   // Basin hopping from the best minimum: hops refinements from points hop_radius standard
   // errors away in random directions (seeded by hop_seed); a lower one becomes the best.
   int hops = 4;
