@@ -60,6 +60,7 @@ void FitOptions::Validate() const {
   require(profile_relax_reach >= profile_step, "profile_relax_reach: must be >= profile_step");
   require(curved_valley_ratio >= 0.0, "curved_valley_ratio: must be >= 0");
   require(curved_valley_iterations >= 1, "curved_valley_iterations: must be >= 1");
+  require(open_gap_points >= 0 && open_gap_points <= 20, "open_gap_points: must be in [0, 20]");
   require(escalation_factor >= 1, "escalation_factor: must be >= 1");
   require(hops >= 0, "hops: must be >= 0");
   require(hop_radius > 0.0, "hop_radius: must be > 0");

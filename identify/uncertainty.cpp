@@ -158,7 +158,8 @@ namespace {
 // and (when asked) the fitted quantities it does not hold (Informative).
 bool FreshCovariance(const FitModel& model, const std::vector<double>& u, double cost,
                      const FitOptions& options, Eigen::MatrixXd* covariance, double* noise_scale,
-                     std::vector<int>* informative = nullptr) {
+                     std::vector<int>* informative = nullptr,
+                     Eigen::MatrixXd* jacobian_out = nullptr) {
   Eigen::VectorXd r;
   std::vector<Nuisance> nuisance;
   Eigen::MatrixXd jacobian;
@@ -172,6 +173,7 @@ bool FreshCovariance(const FitModel& model, const std::vector<double>& u, double
   *noise_scale = std::sqrt(2.0 * cost / dof);
   *covariance = Covariance(jacobian, fitted, *noise_scale);
   if (informative != nullptr) *informative = Informative(jacobian, fitted, *noise_scale);
+  if (jacobian_out != nullptr) *jacobian_out = std::move(jacobian);
   return true;
 }
 
@@ -244,6 +246,35 @@ namespace {
 
 // The first point of a walk inward from a bound, as a fraction of the range (then doubled).
 constexpr double kBoundWalkFirst = 1.0 / 16.0;
+
+// Bisections of the open-gap edge (OpenGapEdge): the edge to 2⁻¹⁰ of where the gap sits.
+constexpr int kEdgeBisections = 10;
+
+// The smallest unit coordinate of slot `i`, between its lower bound and u[i], at which the cost
+// (every other quantity held; gains and offsets solved) is still the cost at u[i]: below it the
+// gap closes somewhere in the record. −1 when it closes nowhere above the lower bound.
+double OpenGapEdge(const FitModel& model, const std::vector<double>& u, int i, double noise_scale) {
+  std::vector<double> point(u);
+  const auto cost_at = [&](double unit) {
+    point[i] = unit;
+    return model.ProjectedCost(point.data());
+  };
+  const double plateau = cost_at(u[i]);
+  // χ² 1e-6 apart: the record has seen the gap close.
+  const double touched = 0.5e-6 * noise_scale * noise_scale;
+  const auto open = [&](double unit) {
+    const double cost = cost_at(unit);
+    return std::isfinite(cost) && std::abs(cost - plateau) <= touched;
+  };
+  if (!std::isfinite(plateau) || open(0.0)) return -1.0;
+  double closed = 0.0;
+  double still_open = u[i];
+  for (int k = 0; k < kEdgeBisections; ++k) {
+    const double middle = 0.5 * (closed + still_open);
+    (open(middle) ? still_open : closed) = middle;
+  }
+  return still_open;
+}
 
 // u moved `distance` along `direction` (unit coordinates); empty when that leaves the unit box
 // (past a bound the parameter cannot go, and that side says nothing about the spread inside).
@@ -318,8 +349,9 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
   std::vector<std::vector<double>> lower;
   Eigen::MatrixXd covariance;
   double noise_scale = 0.0;
+  Eigen::MatrixXd jacobian;
   if (!(options.curved_valley_ratio > 0.0) ||
-      !FreshCovariance(model, u, cost, options, &covariance, &noise_scale)) {
+      !FreshCovariance(model, u, cost, options, &covariance, &noise_scale, nullptr, &jacobian)) {
     return lower;
   }
   const int p = model.parameters();
@@ -353,6 +385,22 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
         if (start.empty()) break;
         held.push_back({i, std::move(start)});
       }
+    }
+  }
+  // A gap the record hardly depends on (EstimateUncertainty's test: alone, its standard error
+  // would exceed unidentifiable_fraction of its range) may never close at the minimum, while
+  // the other quantities make up for it. Where it would close, the linearisation does not say:
+  // it is held just below the edge of the open gaps' plateau (OpenGapEdge), then further down.
+  for (int i = 0; i < p && options.open_gap_points > 0; ++i) {
+    if (model.free(i).parameter.kind != driveline::SceneParameter::Kind::kBacklash) continue;
+    const double norm = jacobian.col(i).norm();
+    if (norm > 0.0 && noise_scale / norm <= options.unidentifiable_fraction) continue;
+    const double edge = OpenGapEdge(model, u, i, noise_scale);
+    if (!(edge > 0.0)) continue;
+    for (int k = options.open_gap_points; k >= 1; --k) {
+      std::vector<double> start(u);
+      start[i] = edge * (1.0 - std::ldexp(1.0, -k));
+      held.push_back({i, std::move(start)});
     }
   }
   // A parameter at a bound: the minimum is the bound's, not the misfit's, and its linearisation

@@ -65,7 +65,9 @@ std::vector<std::vector<double>> GapKicks(const FitModel& model, const std::vect
 // minimum's, lowest first: a lower valley along a curved one, which the starts and the hops
 // missed. A parameter at a bound (within kAtBound in unit coordinates) has its profile followed
 // inward: held at 1/16, 1/8, 1/4 and 1/2 of its range from the bound, the others refitted the
-// same way; those held fits go to `bound_walks` (slot, point, cost) as well.
+// same way; those held fits go to `bound_walks` (slot, point, cost) as well. A gap the record
+// hardly depends on (it never closes at u) is held just below the edge of its plateau, where it
+// starts to close (FitOptions::open_gap_points), the others refitted the same way.
 std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
                                                     const std::vector<double>& u, double cost,
                                                     const FitOptions& options,

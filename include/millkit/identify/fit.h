@@ -157,6 +157,13 @@ struct FitOptions {
   // reaches counts as one no start reached. 0: neither is followed.
   double curved_valley_ratio = 100.0;
   int curved_valley_iterations = 20;
+  // With the curved valleys: a gap that never closes at the best minimum (its backlash fails the
+  // identifiability test above and the cost is the same at every larger gap) may sit where
+  // another parameter makes up for it, while the truth's valley, where the gap closes briefly,
+  // is a narrow one just below the smallest gap that stays open. That edge is found by bisection
+  // (the others held), and the gap held at edge × (1 − 2⁻ᵏ), k = open_gap_points … 1 (in unit
+  // coordinates), the others refitted; a lower point found is refined as above. 0: none.
+  int open_gap_points = 6;
   // Basin hopping from the best minimum: hops refinements from points hop_radius standard
   // errors away in random directions (seeded by hop_seed); a lower one becomes the best.
   int hops = 4;
