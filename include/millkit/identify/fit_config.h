@@ -12,12 +12,14 @@
 //                          # sample); bite_time counts from it, the window is in record time
 //   [set]                  # known values replacing the scene's, not fitted
 //   "lower_spindle.gap_position" = 1.0
-//   [[free]]               # one per fitted scene parameter (names:
-//   millkit/driveline/scene_parameter.h) name = "upper_spindle.backlash" start = 0.015          #
-//   default: the scene's value (after [set]) lower = 0.002 upper = 0.04 scan = true            #
-//   part of the coarse scan (default: true) per_record = false     # with several records (--data
-//   more than once): one value per record
-//                          # (default: true for bite_time, false otherwise)
+//   [[free]]               # one per fitted scene parameter (names: scene_parameter.h)
+//   name = "upper_spindle.backlash"
+//   start = 0.015          # default: the scene's value (after [set])
+//   lower = 0.002
+//   upper = 0.04
+//   scan = true            # part of the coarse scan (default: true)
+//   per_record = false     # with several records (--data more than once): one value per
+//                          # record (default: true for bite_time, false otherwise)
 //   [[channel]]
 //   column = "upper_torque"  # record column (or iba signal ID, "[3:12]")
 //   link = "upper_spindle"   # default: the column name
