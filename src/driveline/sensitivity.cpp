@@ -5,10 +5,8 @@
 // s_P] from stop to stop in the phase set of the leg. It works in the solver's scaled
 // coordinates, ỹ = D⁻¹ z and S̃_j = σ_j D⁻¹ s_j (σ_j the parameter's magnitude), where
 // M̃ = D⁻¹ M D has a norm near the fastest mode's rate and M̃_j = σ_j D⁻¹ M_j D is of the same size.
-// The stops come from a run kept on a tape (StopTape: a RecordedRun's, or one made first here),
-// replayed to the pass in the same order with the same values, or, where the tape outgrew its
-// budget, from the solver running again with the pass. The tape also counts each phase set's full
-// steps, from which the pass decides where to build the step's propagators.
+// The stops come from the solver as it runs, or from a run kept before (RecordedRun: its stops on
+// a tape, replayed to the pass in the same order with the same values).
 #include "millkit/driveline/sensitivity.h"
 
 #include <algorithm>
@@ -16,7 +14,6 @@
 #include <limits>
 #include <map>
 #include <memory>
-#include <optional>
 #include <stdexcept>
 #include <type_traits>
 
@@ -34,10 +31,6 @@ constexpr double kMaxTaylorPieces = 16.0;
 constexpr int kMaxTaylorTerms = 60;
 // Taylor terms a full piece takes (θ = 1 to 1/4 ulp), for the caching rule.
 constexpr double kTypicalTerms = 18.0;
-// The caching rule's estimate of a build, against its estimate of a Taylor step, is about twice
-// what they cost (the bundled bite: a build costs about 7 full Taylor steps, the estimates say
-// 16); the steps' work is compared with this share of the build's.
-constexpr double kBuildShare = 0.5;
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 // A surface crossed at a rate below this fraction of its terms' size grazes: the event time's
 // derivative is not defined.
@@ -164,9 +157,9 @@ struct PhaseSet {
   bool has_torque_p = false;        // the first output in the phase set
   double norm = 0.0;  // of the other rows: ‖[M̃ M̃_j; 0 M̃]‖∞ <= ‖M̃‖∞ + max ‖M̃_j‖∞
   // Building the propagators over the step costs P exponentials of 2n × 2n; a full step then
-  // costs 2 n² P instead of a Taylor series. They are built at the phase set's first full step
-  // when the Taylor work of all its full steps in the run would exceed the building's.
-  int full_steps = 0;  // the run's full steps in this phase set (StopTape::full_steps)
+  // costs 2 n² P instead of a Taylor series. They are built once the Taylor work of the full
+  // steps so far exceeds the building's.
+  double taylor_work = 0.0;
   bool cached = false;
   RowMatrix e;        // exp(M̃ h)
   Eigen::MatrixXd f;  // F̃_j(h), stacked
@@ -201,8 +194,6 @@ class SensitivityPass final : public HybridObserver {
   }
 
   const std::string& unavailable() const { return unavailable_; }
-  // The run's full steps in each phase set, for the caching rule; read while the pass runs.
-  void PlanSteps(const std::map<Phases, int>* full_steps) { full_steps_ = full_steps; }
   std::vector<Eigen::MatrixXd> TakeOutputs() { return std::move(out_); }
 
   void Started(const Eigen::VectorXd& z0, const Phases& /*phases*/) override {
@@ -342,10 +333,6 @@ class SensitivityPass final : public HybridObserver {
       return found->second;
     }
     PhaseSet& data = cache_[phases];
-    if (full_steps_ != nullptr) {
-      const auto steps = full_steps_->find(phases);
-      if (steps != full_steps_->end()) data.full_steps = steps->second;
-    }
     data.m = model_.SystemMatrix(phases);
     data.m_scaled = d_inverse_.asDiagonal() * data.m * d_.asDiagonal();
     for (int i = 0; i < n_; ++i) {
@@ -618,11 +605,11 @@ class SensitivityPass final : public HybridObserver {
     if (full_step && !data.cached) {
       // Work in multiply-adds: a Taylor term against one exponential of 2n × 2n (≈ 20 (2n)³).
       const double n = n_;
-      const double taylor_work =
-          data.full_steps * std::max(pieces, 1.0) * kTypicalTerms *
+      data.taylor_work +=
+          std::max(pieces, 1.0) * kTypicalTerms *
           static_cast<double>((data.sparse.size() + 1) * (p_ + 1) + data.sparse_p.size());
       const double build = 0.25 * 8.0 * n * n * n * (1.0 + static_cast<double>(p_));
-      if (pieces > kMaxTaylorPieces || taylor_work > kBuildShare * build) {
+      if (pieces > kMaxTaylorPieces || data.taylor_work > build) {
         Exponentials(data, h_, &data.e, &data.f);
         data.cached = true;
       }
@@ -710,7 +697,6 @@ class SensitivityPass final : public HybridObserver {
   bool given_state_;
   std::vector<Eigen::MatrixXd> surfaces_p_;  // G_j (unscaled)
   std::map<Phases, PhaseSet> cache_;
-  const std::map<Phases, int>* full_steps_ = nullptr;
   PhaseSet* current_ = nullptr;     // the phase set of the latest leg
   const PhaseSet* rest_ = nullptr;  // the phase set found at rest (AtRest) with state rest_z_
   Eigen::VectorXd rest_z_;
@@ -735,13 +721,10 @@ class SensitivityPass final : public HybridObserver {
 // (a run of very many events, a very long record) is dropped and keeps nothing more.
 class StopTape final : public HybridObserver {
  public:
-  // `step`: the exact solver's step, whose legs full_steps() counts.
-  StopTape(size_t budget_bytes, double step) : budget_(budget_bytes), step_(step) {}
+  explicit StopTape(size_t budget_bytes) : budget_(budget_bytes) {}
 
   // Whether every call was kept.
   bool complete() const { return !dropped_; }
-  // The run's legs of a full step in each phase set, counted whether or not the tape was kept.
-  const std::map<Phases, int>& full_steps() const { return full_steps_; }
 
   void Started(const Eigen::VectorXd& z0, const Phases& phases) override {
     if (!Room()) return;
@@ -751,7 +734,6 @@ class StopTape final : public HybridObserver {
   }
   void LegEnded(double elapsed, const Phases& phases, const Eigen::VectorXd& z,
                 bool blind) override {
-    if (std::abs(elapsed - step_) <= 1e-10 * step_) ++full_steps_[phases];
     if (!Room()) return;
     calls_.push_back(blind ? Call::kBlindLeg : Call::kLeg);
     numbers_.push_back(elapsed);
@@ -849,14 +831,10 @@ class StopTape final : public HybridObserver {
   std::vector<int> samples_;
   size_t budget_;
   bool dropped_ = false;
-  double step_;
-  std::map<Phases, int> full_steps_;
 };
 
-// The sensitivities of a run of `model` with options `run` (validated, exact solver), whose stops
-// `kept` holds with its `result` (the run's, from RecordedRun), or null: the run is made here
-// first. The pass follows the kept stops, or, where the tape outgrew its budget, runs with the
-// solver again; either way it knows each phase set's full steps from the tape.
+// The sensitivities of a run of `model` with options `run` (validated, exact solver): the solver
+// runs with the pass attached, or (`kept`, with its `result`) the pass follows a kept run.
 SensitivityResult Sensitivities(const Model& model, const SimulationOptions& run,
                                 const std::vector<SceneParameter>& parameters,
                                 const std::vector<int>& links, const StopTape* kept,
@@ -910,33 +888,23 @@ SensitivityResult Sensitivities(const Model& model, const SimulationOptions& run
     if (!result.unavailable.empty()) break;
     models.push_back(std::move(entry));
   }
-  const double step = ExactStepLength(model, run);
-  const auto run_with = [&](HybridObserver* observer) {
+  // The run, with `observer` told every stop.
+  const auto run_along = [&](HybridObserver* observer) {
+    if (kept != nullptr) {
+      if (observer != nullptr) kept->Replay(observer);
+      return *kept_result;
+    }
     const std::unique_ptr<ModeIntegrator> integrator = MakeExactIntegrator(model, run);
     return RunHybrid(model, run, SolverOf(SolverKind::kExact).name, integrator.get(), observer);
   };
-  std::optional<StopTape> own;
-  SimulationResult own_result;
-  if (kept == nullptr) {
-    own.emplace(RecordedRun::kDefaultBudgetBytes, step);
-    own_result = run_with(&*own);
-    kept = &*own;
-    kept_result = &own_result;
-  }
-  // The run, with `observer` told every stop.
-  const auto run_along = [&](HybridObserver* observer) {
-    if (!kept->complete()) return run_with(observer);
-    if (observer != nullptr) kept->Replay(observer);
-    return *kept_result;
-  };
   if (!result.unavailable.empty()) {
-    result.simulation = *kept_result;
+    result.simulation = run_along(nullptr);
     return result;
   }
+  const double step = ExactStepLength(model, run);
   const int samples = OutputGrid(model.reduced_scene(), run).size();
   SensitivityPass pass(model, std::move(models), ExactScale(model, step), step, samples,
                        run.initial_state.has_value(), std::move(recorded));
-  pass.PlanSteps(&kept->full_steps());
   result.simulation = run_along(&pass);
   if (!result.simulation.summary.success) {
     result.unavailable = "the run failed: " + result.simulation.summary.message;
@@ -945,13 +913,6 @@ SensitivityResult Sensitivities(const Model& model, const SimulationOptions& run
   }
   if (result.unavailable.empty()) result.link_torque = pass.TakeOutputs();
   return result;
-}
-
-// `options` for the exact solver, validated for `model`'s scene.
-SimulationOptions ExactRunOptions(SimulationOptions options, const Model& model) {
-  options.solver = SolverKind::kExact;
-  options.Validate(model.scene());
-  return options;
 }
 
 }  // namespace
@@ -971,9 +932,7 @@ SensitivityResult SimulateWithSensitivities(const Scene& scene,
 
 struct RecordedRun::Kept {
   Kept(const Scene& scene, const SimulationOptions& given, size_t budget_bytes)
-      : model(scene),
-        options(ExactRunOptions(given, model)),
-        stops(budget_bytes, ExactStepLength(model, options)) {}
+      : model(scene), options(given), stops(budget_bytes) {}
   Model model;
   SimulationOptions options;
   SimulationResult result;
@@ -988,6 +947,8 @@ RecordedRun& RecordedRun::operator=(RecordedRun&&) noexcept = default;
 RecordedRun::RecordedRun(const Scene& scene, const SimulationOptions& options, size_t budget_bytes)
     : kept_(std::make_unique<Kept>(scene, options, budget_bytes)) {
   Kept& kept = *kept_;
+  kept.options.solver = SolverKind::kExact;
+  kept.options.Validate(kept.model.scene());
   const std::unique_ptr<ModeIntegrator> integrator = MakeExactIntegrator(kept.model, kept.options);
   kept.result = RunHybrid(kept.model, kept.options, SolverOf(SolverKind::kExact).name,
                           integrator.get(), &kept.stops);
@@ -1008,6 +969,9 @@ SensitivityResult SimulateWithSensitivities(const RecordedRun& run,
                                             const std::vector<int>& links) {
   if (run.empty()) throw std::logic_error("SimulateWithSensitivities: no run is kept");
   const RecordedRun::Kept& kept = *run.kept_;
+  if (!kept.stops.complete()) {  // the run again, with the pass
+    return Sensitivities(kept.model, kept.options, parameters, links, nullptr, nullptr);
+  }
   return Sensitivities(kept.model, kept.options, parameters, links, &kept.stops, &kept.result);
 }
 

@@ -6,14 +6,13 @@
 //   s_j' = M s_j + M_j z,    M_j = ∂M/∂p_j,
 // so over a leg of length τ from z(t):
 //   s_j(t + τ) = exp(M τ) s_j(t) + F_j(τ) z(t),   [exp(Mτ) F_j; 0 exp(Mτ)] = exp([M M_j; 0 M] τ),
-// the block-triangular exponential (for the sample step, built once per phase set at its first
-// step where the run takes enough steps there to repay it; a Taylor series or a matrix
-// exponential on other legs: the run is made first, its stops kept, and the pass follows them). A
-// recorder low-pass state (Link::recorder_lowpass_Hz), which no other state reads, is carried
-// exactly beside the series of the others (its decay through their Taylor polynomial), so that a
-// filter faster than the line does not shorten the series' pieces. At an event on surface g = G z
-// whose right-hand side jumps (no_pull and linear contact laws; the limited law's is continuous
-// there), with the event time's sensitivity ∂t_e/∂p_j = −(G s_j⁻ + G_j z) / (G f⁻):
+// the block-triangular exponential (cached per phase set for the sample step, a Taylor series or
+// a matrix exponential on other legs). A recorder low-pass state (Link::recorder_lowpass_Hz),
+// which no other state reads, is carried exactly beside the series of the others (its decay
+// through their Taylor polynomial), so that a filter faster than the line does not shorten the
+// series' pieces. At an event on surface g = G z whose right-hand side jumps
+// (no_pull and linear contact laws; the limited law's is continuous there), with the event time's
+// sensitivity ∂t_e/∂p_j = −(G s_j⁻ + G_j z) / (G f⁻):
 //   s_j⁺ = s_j⁻ + (f⁻ − f⁺) ∂t_e/∂p_j,   f∓ = M∓ z.
 // At an input breakpoint the forcing part of s_j takes the derivative of the forcing's right limit
 // (−slope for the bite time, which shifts every breakpoint), and for the bite time the state part
