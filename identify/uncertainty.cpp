@@ -391,7 +391,7 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
   // would exceed unidentifiable_fraction of its range) may never close at the minimum, while
   // the other quantities make up for it. Where it would close, the linearisation does not say:
   // it is held just below the edge of the open gaps' plateau (OpenGapEdge), then further down.
-  for (int i = 0; i < p && options.open_gap_points > 0; ++i) {
+  for (int i = 0; i < p && i < jacobian.cols() && options.open_gap_points > 0; ++i) {
     if (model.free(i).parameter.kind != driveline::SceneParameter::Kind::kBacklash) continue;
     const double norm = jacobian.col(i).norm();
     if (norm > 0.0 && noise_scale / norm <= options.unidentifiable_fraction) continue;
