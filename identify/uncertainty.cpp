@@ -24,6 +24,13 @@ constexpr double kNegligibleEffect = 0.01;
 // others, a negligible column is its roundoff (or a trace of an effect) pointing anywhere, and
 // takes from the others whatever part of their columns it points along: their standard errors
 // then depend on where it is held (up to 2.2 times over 30 records of the balanced line).
+// A fitted quantity's standard error in unit coordinates were every other one known:
+// noise / ‖its Jacobian column‖ (infinite for a column the record does not see). Above
+// FitOptions::unidentifiable_fraction the record hardly depends on it.
+double AloneStandardError(double column_norm, double noise_scale) {
+  return column_norm > 0.0 ? noise_scale / column_norm : std::numeric_limits<double>::infinity();
+}
+
 std::vector<int> Informative(const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted,
                              double noise_scale) {
   std::vector<int> informative;
@@ -108,8 +115,7 @@ void FlagUnidentifiable(const FitModel& model, const Eigen::MatrixXd& jacobian,
              ShortNumber(estimate.lower) + ", " + ShortNumber(estimate.upper) + "]" +
              (map.log_scale() ? " on the log scale it is fitted on" : "");
     };
-    // noise/‖column‖ is in unit coordinates.
-    const double alone = norm > 0.0 ? noise_scale / norm : std::numeric_limits<double>::infinity();
+    const double alone = AloneStandardError(norm, noise_scale);
     if (!(alone <= limit) || in_svd == fitted.end()) {
       estimate.identifiable = false;
       estimate.why_not =
@@ -393,8 +399,10 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
   // it is held just below the edge of the open gaps' plateau (OpenGapEdge), then further down.
   for (int i = 0; i < p && i < jacobian.cols() && options.open_gap_points > 0; ++i) {
     if (model.free(i).parameter.kind != driveline::SceneParameter::Kind::kBacklash) continue;
-    const double norm = jacobian.col(i).norm();
-    if (norm > 0.0 && noise_scale / norm <= options.unidentifiable_fraction) continue;
+    if (AloneStandardError(jacobian.col(i).norm(), noise_scale) <=
+        options.unidentifiable_fraction) {
+      continue;
+    }
     const double edge = OpenGapEdge(model, u, i, noise_scale);
     if (!(edge > 0.0)) continue;
     for (int k = options.open_gap_points; k >= 1; --k) {
