@@ -38,6 +38,9 @@ mkdir -p "$build/fuzz/artifacts"
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 failed=()
+# The harnesses write the inputs of file-reading parsers under $TMPDIR; each run gets a scratch
+# directory of its own in the build tree, removed after it (also after a crash).
+scratch=$build/fuzz/tmp
 harnesses=${FUZZ_HARNESSES:-$(printf '%s\n' "${!seeds[@]}" | grep -v '^driveline_fuzz$' | sort)}
 for name in $harnesses; do
   corpus=$build/fuzz/corpus/$name
@@ -46,7 +49,8 @@ for name in $harnesses; do
   [ -z "${seeds[$name]}" ] || cp ${seeds[$name]} "$corpus/"
   [ ! -d "$here/tests/fuzz/corpus/$name" ] || cp "$here/tests/fuzz/corpus/$name"/* "$corpus/"
   start=$SECONDS
-  if "$build/tests/fuzz/$name" "$corpus" -max_total_time="$seconds" -timeout="$timeout" \
+  rm -rf "$scratch" && mkdir -p "$scratch"
+  if TMPDIR=$scratch "$build/tests/fuzz/$name" "$corpus" -max_total_time="$seconds" -timeout="$timeout" \
        -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$build/fuzz/artifacts/$name-" \
        > "$build/fuzz/$name.log" 2>&1; then
     echo "fuzz: $name ok ($(grep -o 'stat::number_of_executed_units: *[0-9]*' "$build/fuzz/$name.log" | grep -o '[0-9]*$') runs, $((SECONDS - start)) s)"
@@ -55,6 +59,7 @@ for name in $harnesses; do
     tail -40 "$build/fuzz/$name.log" >&2
     failed+=("$name")
   fi
+  rm -rf "$scratch"
 done
 if [ ${#failed[@]} -gt 0 ]; then
   echo "fuzz: failed: ${failed[*]}" >&2
