@@ -15,7 +15,12 @@
 //  2. Convergence from ±50 % starts on the noise-free record (--starts random starts, no scan):
 //     the share that recovers every parameter to 1e-6.
 //  3. SciPy (least_squares over solve_ivp) on the first noisy record, through
-//     bench/identify/scipy_identify.py, when /usr/bin/python3 has scipy.
+//     bench/identify/scipy_identify.py, when /usr/bin/python3 has scipy: from the nominal start
+//     and from the truth. In the same run, on that record: MillKit's default search from the
+//     nominal start (part 1's first fit) and MillKit's local fit from the truth (SciPy's own
+//     task: one Levenberg–Marquardt fit of the whole record, no scan, no continuation, none of
+//     the search's checks), median wall of --local-repeats, with the ratios to SciPy's wall and
+//     the two fits' largest difference in MillKit's standard errors.
 // Exits non-zero when a fit from the truth fails to converge (a bug, not a slowness).
 #include <glog/logging.h>
 
@@ -27,6 +32,7 @@
 #include <filesystem>
 #include <map>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -72,11 +78,62 @@ double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
+// SciPy's task from a given start: one local fit of the whole record. The search's scan,
+// continuation and checks off; the covariance (standard errors) still computed.
+FitOptions LocalOnly() {
+  FitOptions options;
+  options.first_stage_divisor = 1.0;
+  options.escalation_factor = 1;
+  options.hops = 0;
+  options.gap_kick = 0.0;
+  options.curved_valley_ratio = 0.0;
+  options.open_gap_points = 0;
+  options.profile_points = 0;
+  options.profile_relax_widening = 0.0;
+  return options;
+}
+
+// One of SciPy's fits, as scipy_identify.py reports it on its SCIPY_RESULT line.
+struct SciPyFit {
+  double wall_s = 0.0;
+  long simulations = 0;
+  std::vector<double> values;
+};
+
+// Runs `command`, echoes its output but its SCIPY_RESULT lines, and returns those by start label
+// ("nominal", "truth"). Empty when the command fails.
+std::map<std::string, SciPyFit> RunSciPy(const std::string& command) {
+  std::map<std::string, SciPyFit> fits;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return fits;
+  std::string line;
+  char chunk[4096];
+  while (std::fgets(chunk, sizeof(chunk), pipe) != nullptr) {
+    line += chunk;
+    if (line.empty() || line.back() != '\n') continue;
+    if (line.rfind("SCIPY_RESULT ", 0) == 0) {
+      std::istringstream in(line.substr(13));
+      std::string label;
+      SciPyFit fit;
+      in >> label >> fit.wall_s >> fit.simulations;
+      for (double v; in >> v;) fit.values.push_back(v);
+      fits[label] = fit;
+    } else {
+      std::fputs(line.c_str(), stdout);
+    }
+    line.clear();
+  }
+  if (pclose(pipe) != 0) fits.clear();
+  std::fflush(stdout);
+  return fits;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   int seeds = 100;
   int random_starts = 100;
+  int local_repeats = 11;
   bool step_stop = true;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
@@ -86,8 +143,12 @@ int main(int argc, char** argv) {
       seeds = std::atoi(argv[++i]);
     } else if (flag == "--starts" && i + 1 < argc) {
       random_starts = std::atoi(argv[++i]);
+    } else if (flag == "--local-repeats" && i + 1 < argc) {
+      local_repeats = std::max(1, std::atoi(argv[++i]));
     } else {
-      std::fprintf(stderr, "usage: %s [--seeds N (100)] [--starts N (100)] [--no-step-stop]\n",
+      std::fprintf(stderr,
+                   "usage: %s [--seeds N (100)] [--starts N (100)] [--local-repeats N (11)] "
+                   "[--no-step-stop]\n",
                    argv[0]);
       return 2;
     }
@@ -124,6 +185,7 @@ int main(int argc, char** argv) {
       "| derivatives | fits | converged | median wall s | median simulations | "
       "worst RMSE / CRLB, all fits | the same, converged fits |\n|---|---|---|---|---|---|---|\n");
   Oscillogram first_noisy;
+  FitResult first_search;  // the default fit of the first noisy record
   std::vector<double> default_rmse(truth.size(), 0.0);
   for (const Derivatives derivatives :
        {Derivatives::kSensitivity, Derivatives::kForward, Derivatives::kCentral}) {
@@ -146,6 +208,10 @@ int main(int argc, char** argv) {
       const FitResult fit = Fit(fit_scene, record, config, options);
       walls.push_back(Seconds(start));
       sims.push_back(fit.summary.simulations);
+      if (seed == 1 && derivatives == FitOptions{}.derivatives) {
+        first_search = fit;
+        first_search.summary.wall_time_s = walls.back();
+      }
       // Reference: the same record fitted from the truth, no scan.
       FitConfig from_truth = config;
       for (size_t i = 0; i < truth.size(); ++i) from_truth.free[i].start = truth[i];
@@ -236,6 +302,56 @@ int main(int argc, char** argv) {
       recovered, random_starts, walls.empty() ? 0.0 : walls[walls.size() / 2]);
   std::fflush(stdout);
 
+  // MillKit's local fit from the truth on the first noisy record: SciPy's task from there.
+  if (seeds < 1) return status;
+  driveline::Scene local_scene = setup.nominal;
+  FitConfig local_config = Config(first_noisy, &local_scene);
+  for (size_t i = 0; i < truth.size(); ++i) local_config.free[i].start = truth[i];
+  local_config.scan_points = 0;
+  local_config.starts = 1;
+  // The median wall of local_repeats local fits of the first noisy record from `config`'s starts.
+  const auto local_fit = [&](const FitConfig& config, FitResult* result) {
+    std::vector<double> local_walls;
+    for (int k = 0; k < local_repeats; ++k) {
+      const auto start = std::chrono::steady_clock::now();
+      *result = Fit(local_scene, first_noisy, config, LocalOnly());
+      local_walls.push_back(Seconds(start));
+    }
+    std::sort(local_walls.begin(), local_walls.end());
+    return local_walls[local_walls.size() / 2];
+  };
+  FitResult local;
+  const double local_wall = local_fit(local_config, &local);
+  // And from the nominal start, as SciPy's first fit.
+  FitConfig nominal_config = local_config;
+  for (size_t i = 0; i < truth.size(); ++i) {
+    nominal_config.free[i].start = first_search.parameters[i].start;
+  }
+  FitResult local_nominal;
+  const double local_nominal_wall = local_fit(nominal_config, &local_nominal);
+  // The default search's fit of the record against the local one, in the local one's standard
+  // errors (the same minimum: within a small fraction of one).
+  const auto apart = [&](const std::vector<double>& values) {
+    double worst = 0.0;
+    for (size_t i = 0; i < truth.size() && i < values.size(); ++i) {
+      worst = std::max(worst, std::abs(values[i] - local.parameters[i].value) /
+                                  local.parameters[i].standard_error);
+    }
+    return worst;
+  };
+  std::vector<double> search_values, local_nominal_values;
+  for (const auto& p : first_search.parameters) search_values.push_back(p.value);
+  for (const auto& p : local_nominal.parameters) local_nominal_values.push_back(p.value);
+  std::printf(
+      "\nMillKit's local fit from the truth, first noisy record (one Levenberg–Marquardt fit of "
+      "the whole record and its covariance; no scan, continuation or checks): %s, median %.4f s "
+      "of %d, %ld simulations; the default search's fit of the record (from the nominal start, "
+      "%.3f s) lies %.3g standard errors from it\n",
+      local.summary.success ? "converged" : "FAILED", local_wall, local_repeats,
+      local.summary.simulations, first_search.summary.wall_time_s, apart(search_values));
+  std::fflush(stdout);
+  if (!local.summary.success) status = 1;
+
   // SciPy on the first noisy record.
   const auto dir = std::filesystem::temp_directory_path() / "millkit_bench_identify";
   std::filesystem::create_directories(dir);
@@ -245,8 +361,36 @@ int main(int argc, char** argv) {
       "/usr/bin/python3 -c 'import scipy' 2>/dev/null && /usr/bin/python3 '" + script + "' '" +
       kSource + "/datasets/scenes/mill5_bite.toml' '" + (dir / "record.csv").string() + "'";
   std::printf(
-      "\nSciPy least_squares over solve_ivp, same record, same start (nominal) and bounds:\n\n");
+      "\nSciPy least_squares over solve_ivp, same record and bounds, from the nominal start and "
+      "from the truth:\n\n");
   std::fflush(stdout);
-  if (std::system(command.c_str()) != 0) std::printf("(SciPy not available or failed)\n");
+  const std::map<std::string, SciPyFit> scipy = RunSciPy(command);
+  std::filesystem::remove_all(dir);
+  if (scipy.count("nominal") == 0 || scipy.count("truth") == 0) {
+    std::printf("(SciPy not available or failed)\n");
+    return status;
+  }
+  const SciPyFit& from_nominal = scipy.at("nominal");
+  const SciPyFit& from_truth = scipy.at("truth");
+  std::printf(
+      "\nSpeed against SciPy, same record, one run (distance: the largest parameter difference "
+      "from MillKit's local fit from the truth, in its standard errors):\n\n"
+      "| MillKit | SciPy | MillKit wall s | SciPy wall s | SciPy / MillKit | MillKit's distance "
+      "| SciPy's distance |\n|---|---|---|---|---|---|---|\n");
+  std::vector<double> local_values;
+  for (const auto& p : local.parameters) local_values.push_back(p.value);
+  const auto row = [&](const char* millkit, double wall, const std::vector<double>& values,
+                       const char* scipy_start, const SciPyFit& scipy_fit) {
+    std::printf("| %s | from %s | %.4f | %.2f | %.0f× | %.3g | %.3g |\n", millkit, scipy_start,
+                wall, scipy_fit.wall_s, scipy_fit.wall_s / wall, apart(values),
+                apart(scipy_fit.values));
+  };
+  const double search_wall = first_search.summary.wall_time_s;
+  row("local fit from the truth", local_wall, local_values, "the truth", from_truth);
+  row("default search from the nominal start", search_wall, search_values, "the truth", from_truth);
+  row("local fit from the nominal start", local_nominal_wall, local_nominal_values,
+      "the nominal start", from_nominal);
+  row("default search from the nominal start", search_wall, search_values, "the nominal start",
+      from_nominal);
   return status;
 }

@@ -6,7 +6,8 @@ for a speed ratio at the accuracy MillKit reaches from the nominal start).
 
 usage: scipy_identify.py SCENE.toml RECORD.csv
 Prints: wall time, function evaluations, and each parameter's error against the truth of
-datasets/records/mill5_two_spindles.spec.toml.
+datasets/records/mill5_two_spindles.spec.toml; and per start a line `SCIPY_RESULT <start> <wall s>
+<simulations> <value>...` (the values in the fit config's order), which bench_identify reads.
 """
 import os
 import sys
@@ -39,7 +40,7 @@ def main():
                         np.array([p["lower"] for p in config["free"]]),
                         np.array([p["upper"] for p in config["free"]]))
 
-    def run(label, p0):
+    def run(key, label, p0):
         p, wall, nfev, result = fit.run(p0)
         print(f"SciPy from {label}: {wall:.1f} s wall, {nfev} simulations, status "
               f"{result.status} ({result.message})\n")
@@ -52,12 +53,15 @@ def main():
             print(f"| {name} | {true:.6g} | {value:.6g} | {rel:.2e} |")
         print(f"\nSciPy from {label}: worst relative parameter error {worst:.2e}; "
               f"wall {wall:.1f} s\n", flush=True)
+        # For bench_identify: the start's label, wall s, simulations, every value at full precision.
+        print(f"SCIPY_RESULT {key} {wall!r} {nfev} " + " ".join(repr(float(v)) for v in p),
+              flush=True)
 
-    run("the nominal start",
+    run("nominal", "the nominal start",
         np.array([scipy_fit.nominal(base, link_index, n) for n in names]))
     # The easiest case for SciPy: started at the truth, it only has to settle into the minimum
     # of this record, which MillKit reaches from the nominal start.
-    run("the truth", np.array([truth[n] for n in names]))
+    run("truth", "the truth", np.array([truth[n] for n in names]))
 
 
 if __name__ == "__main__":
