@@ -107,7 +107,7 @@ SimulationResult RunHybrid(const Model& model, const SimulationOptions& options,
     }
     if (end.kind == LegEnd::Kind::kEvent) {
       integrator->EventMotion(&z, &derivatives);
-      const Phases next = model.Classify(z, derivatives, end.crossed);
+      const Phases next = model.Classify(z, derivatives, end.crossed, &phases);
       if (observer != nullptr) {
         observer->LegEnded(end.elapsed, phases, z, escaping);
         observer->Switched(phases, next, end.crossed);

@@ -417,8 +417,25 @@ Phases Model::Classify(const Eigen::VectorXd& z, const Eigen::VectorXd& zdot,
   return Classify(z, std::vector<Eigen::VectorXd>{zdot, zddot}, known_sides);
 }
 
+bool Model::KeptSide(int surface, const std::vector<KnownSide>& known_sides, const Phases& before,
+                     int* side) const {
+  const int k = surface / kLinkSurfaceCount;
+  if (k >= backlash_link_count()) return false;
+  for (const KnownSide& known : known_sides) {
+    if (known.surface / kLinkSurfaceCount == k) return false;  // the event involves the link
+  }
+  for (const LinkSurfaceSide& w :
+       WatchedSurfaces(scene_.contact, static_cast<LinkPhase>(before[k]))) {
+    if (kLinkSurfaceCount * k + w.surface == surface) {
+      *side = w.side;
+      return true;
+    }
+  }
+  return false;
+}
+
 Phases Model::Classify(const Eigen::VectorXd& z, const std::vector<Eigen::VectorXd>& derivatives,
-                       const std::vector<KnownSide>& known_sides) const {
+                       const std::vector<KnownSide>& known_sides, const Phases* before) const {
   const int count = surface_count();
   // Called at every switching event: work space on the stack for the usual sizes.
   const int n = static_cast<int>(z.size());
@@ -455,7 +472,10 @@ Phases Model::Classify(const Eigen::VectorXd& z, const std::vector<Eigen::Vector
     // On the surface to roundoff (rare): the motion decides, by its first moving derivative
     // (except at the limited law's corner: kLinkSideFromMotion).
     side[j] = default_side_[j];
-    if (side_from_motion_[j] == 0) continue;
+    if (side_from_motion_[j] == 0) {
+      if (before != nullptr) KeptSide(j, known_sides, *before, &side[j]);
+      continue;
+    }
     for (const Eigen::VectorXd& derivative : derivatives) {
       // An order the caller left empty (the exact solver stops at a zero derivative) tells
       // nothing (and a dot product of unequal sizes breaks Eigen's contract).

@@ -34,6 +34,19 @@ inline Scene TwoMassScene(double j1, double j2, double c, double d, double b, do
   return scene;
 }
 
+// A link from mass `from` to mass `to` (gap_position at its default, −1: resting on the negative
+// flank).
+inline Link MakeLink(const char* name, int from, int to, double c, double d, double b) {
+  Link link;
+  link.name = name;
+  link.from = from;
+  link.to = to;
+  link.stiffness_Nm_per_rad = c;
+  link.damping_Nms_per_rad = d;
+  link.backlash_rad = b;
+  return link;
+}
+
 // A step (or ramp) torque source on mass `mass`.
 inline TorqueSource Step(int mass, double before, double after, double start, double rise = 0.0) {
   TorqueSource source;

@@ -291,6 +291,46 @@ TEST_CASE("A limited-law link riding the edge of contact under a heavy damper do
   CheckAnswer(model, scene.sample_rate_Hz, exact, /*cvode_answers=*/true);
 }
 
+TEST_CASE("Two limited-law links at the corner at once keep their regions at each other's events",
+          "[hard][stiff]") {
+  // Random line 7697 under a speed-PI drive (bench_random_lines --variant drive): two couplings
+  // from the motor, each resting on its negative flank (gap_position −1) with no torque, so both
+  // sit at the corner ψ = −b/2, ψ' = 0 when the bite starts. Each crossed S5 into the double
+  // spring in turn, and at that event the other, on its own S5 to roundoff, took the default
+  // side (the spring-damper piece) again: −sd/−2c and −2c/−sd swapped at every event until "events
+  // do not advance time" after three escapes. A link the event does not involve keeps its region
+  // there now (Model::Classify's `before`).
+  Scene scene;
+  scene.name = "two couplings at the corner";
+  scene.duration_s = 0.3;
+  scene.sample_rate_Hz = 1596.0;
+  scene.contact = ContactLaw::kLimited;
+  scene.initial_speed_rad_per_s = 10.0;
+  scene.masses = {{"motor", 8598.7}, {"hub1", 32494.6},  {"roll2", 13200.3},
+                  {"hub3", 3075.6},  {"roll4", 15019.3}, {"roll5", 22816.1}};
+  scene.links = {MakeLink("motor_hub1", 0, 1, 1.1858e9, 403465.0, 0.0084380),
+                 MakeLink("spindle2", 1, 2, 2.3168e9, 936804.0, 0.00065823),
+                 MakeLink("motor_hub3", 0, 3, 2.0188e8, 32268.0, 0.029247),
+                 MakeLink("spindle4", 3, 4, 6.6258e8, 187548.0, 0.026137),
+                 MakeLink("spindle5", 0, 5, 2.5020e9, 764214.0, 0.0)};
+  const double bite = 0.0518377;
+  scene.torques = {Step(2, 0.0, -1.25015e7, bite, 0.0065400),
+                   Step(4, 0.0, -1.35143e7, bite, 0.0148640),
+                   Step(5, 0.0, -4.54645e6, bite, 0.0023683)};
+  scene.drive = Drive{.mass = 0,
+                      .speed_ref_rad_per_s = 10.0,
+                      .kp = 757199.0,
+                      .ki = 1.66698e7,
+                      .lag_s = 0.00113559,
+                      .limit_Nm = 1e12};
+  const Model model(scene);
+  const auto exact = Simulate(model, {});
+  INFO(exact.summary.message);
+  REQUIRE(exact.summary.success);
+  CHECK(exact.summary.events <= 2000);
+  CheckAnswer(model, scene.sample_rate_Hz, exact, /*cvode_answers=*/true);
+}
+
 TEST_CASE("A surface held within roundoff of zero by a heavily damped motion is crossed",
           "[hard][stiff]") {
   // Found by tests/fuzz/driveline_fuzz and the extreme scenes beyond the 300 above; each ended on

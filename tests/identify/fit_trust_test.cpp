@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "driveline/scene_builder.h"
 #include "fit_fixture.h"
 #include "identify/random_line.h"
 #include "millkit/driveline/scene_parameter.h"
@@ -677,19 +678,10 @@ TEST_CASE("verdict ambiguous: two spindles that only the motor shaft sees can sw
   truth.sample_rate_Hz = 2000.0;
   truth.initial_speed_rad_per_s = 10.0;
   truth.masses = {{"motor", 12000.0}, {"pinion", 3000.0}, {"roll_a", 1000.0}, {"roll_b", 1000.0}};
-  const auto link = [](const char* name, int from, int to, double c, double d, double b) {
-    driveline::Link l;
-    l.name = name;
-    l.from = from;
-    l.to = to;
-    l.stiffness_Nm_per_rad = c;
-    l.damping_Nms_per_rad = d;
-    l.backlash_rad = b;
-    return l;
-  };
-  truth.links = {link("motor_shaft", 0, 1, 2e8, 4e4, 0.0),
-                 link("spindle_a", 1, 2, 1e7, 4000.0, 0.010),
-                 link("spindle_b", 1, 3, 1e7, 4000.0, 0.025)};
+  using driveline::testing::MakeLink;
+  truth.links = {MakeLink("motor_shaft", 0, 1, 2e8, 4e4, 0.0),
+                 MakeLink("spindle_a", 1, 2, 1e7, 4000.0, 0.010),
+                 MakeLink("spindle_b", 1, 3, 1e7, 4000.0, 0.025)};
   for (const int roll : {2, 3}) {
     driveline::TorqueSource load;
     load.name = "load";

@@ -92,7 +92,8 @@ inline constexpr std::array<int, kLinkSurfaceCount> kLinkDefaultSides = {-1, 1, 
 // shows τd > τc for any push. There the double spring, without the damper, pushes a light mass
 // back across S2 within picoseconds and the free flank pushes it forward again (a chatter, found
 // by the driveline fuzzer); the spring-damper piece holds it at the torque that carries it, and
-// a real push leaves it across S3 at the next event.
+// a real push leaves it across S3 at the next event. At an event of another link, a link on the
+// double spring at that corner keeps it (Model::Classify's `before`).
 inline constexpr std::array<bool, kLinkSurfaceCount> kLinkSideFromMotion = {true,  true, true,
                                                                             false, true, false};
 

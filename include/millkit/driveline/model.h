@@ -129,8 +129,14 @@ class Model {
   // The same with the derivatives z', z'', z''', ... in `derivatives` (the first non-zero one
   // decides): a motion that starts at a higher order (a drive whose torque builds through its lag
   // from rest) leaves a surface on the side its first moving derivative shows.
+  // With `before` (the phases the event ends), a backlash link that has no surface among
+  // `known_sides` (the event does not involve it), on one of its surfaces that take the default
+  // side (kLinkSideFromMotion false) to roundoff, keeps the side that surface bounds its region
+  // in `before` on, where it bounds it: it has not crossed it. (Two links at the limited law's
+  // corner at once, each on its S5 to roundoff, otherwise take the default side at the other's
+  // event and swap regions at every event: random line 7697 under a speed-PI drive, at the bite.)
   Phases Classify(const Eigen::VectorXd& z, const std::vector<Eigen::VectorXd>& derivatives,
-                  const std::vector<KnownSide>& known_sides) const;
+                  const std::vector<KnownSide>& known_sides, const Phases* before = nullptr) const;
   // Phases of the initial state (iterates Classify to a fixed point).
   Phases InitialPhases(const Eigen::VectorXd& z0) const;
   // InitialPhases(InitialState()), computed once.
@@ -171,6 +177,10 @@ class Model {
   int SpeedIndex(int group) const { return flexible_link_count() + group; }
 
  private:
+  // Classify's rule for a link the event does not involve: the side `surface` bounds the link's
+  // region in `before` on, when it bounds it (else false).
+  bool KeptSide(int surface, const std::vector<KnownSide>& known_sides, const Phases& before,
+                int* side) const;
   void BuildSurfaces();
   // The blocks A (state by state) and B (state by forcing) of SystemMatrix written into m, which
   // is augmented size square and zero on entry; the slope block is left zero.
