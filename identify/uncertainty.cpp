@@ -284,12 +284,16 @@ double OpenGapEdge(const FitModel& model, const std::vector<double>& u, int i, d
 
 // u moved `distance` along `direction` (unit coordinates); empty when that leaves the unit box
 // (past a bound the parameter cannot go, and that side says nothing about the spread inside).
+// With `clamp_others_of` = i, only parameter i leaving it makes the point empty: another is held
+// at the bound it would cross.
 std::vector<double> AlongProfile(const std::vector<double>& u, const Eigen::VectorXd& direction,
-                                 double distance) {
+                                 double distance, int clamp_others_of = -1) {
   std::vector<double> point(u);
   for (Eigen::Index s = 0; s < direction.size(); ++s) {
     point[s] += distance * direction(s);
-    if (!(point[s] >= 0.0 && point[s] <= 1.0)) return {};
+    if (point[s] >= 0.0 && point[s] <= 1.0) continue;
+    if (clamp_others_of < 0 || s == clamp_others_of || !std::isfinite(point[s])) return {};
+    point[s] = std::clamp(point[s], 0.0, 1.0);
   }
   return point;
 }
@@ -479,7 +483,10 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
              standard_error;
     };
     const auto along = [&](double sign, double distance) {
-      return AlongProfile(u, direction, sign * distance);
+      // Another parameter that the direction would take out of its bounds is held at the bound
+      // (a parameter not identifiable, with a huge variance, otherwise takes every probe of the
+      // parameters correlated with it out of the box, and they go unchecked: random line 7872).
+      return AlongProfile(u, direction, sign * distance, i);
     };
     double flattest = std::numeric_limits<double>::infinity();
     for (const double sign : {-1.0, 1.0}) {
