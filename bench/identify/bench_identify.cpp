@@ -23,6 +23,7 @@
 //     the two fits' largest difference in MillKit's standard errors.
 // Exits non-zero when a fit from the truth fails to converge (a bug, not a slowness).
 #include <glog/logging.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -91,6 +92,13 @@ FitOptions LocalOnly() {
   options.profile_points = 0;
   options.profile_relax_widening = 0.0;
   return options;
+}
+
+// Every fitted parameter's value, in the config's order.
+std::vector<double> Values(const FitResult& fit) {
+  std::vector<double> values;
+  for (const auto& p : fit.parameters) values.push_back(p.value);
+  return values;
 }
 
 // One of SciPy's fits, as scipy_identify.py reports it on its SCIPY_RESULT line.
@@ -339,9 +347,8 @@ int main(int argc, char** argv) {
     }
     return worst;
   };
-  std::vector<double> search_values, local_nominal_values;
-  for (const auto& p : first_search.parameters) search_values.push_back(p.value);
-  for (const auto& p : local_nominal.parameters) local_nominal_values.push_back(p.value);
+  const std::vector<double> search_values = Values(first_search);
+  const std::vector<double> local_nominal_values = Values(local_nominal);
   std::printf(
       "\nMillKit's local fit from the truth, first noisy record (one Levenberg–Marquardt fit of "
       "the whole record and its covariance; no scan, continuation or checks): %s, median %.4f s "
@@ -353,7 +360,9 @@ int main(int argc, char** argv) {
   if (!local.summary.success) status = 1;
 
   // SciPy on the first noisy record.
-  const auto dir = std::filesystem::temp_directory_path() / "millkit_bench_identify";
+  // This process's own directory (two runs at once do not share or remove each other's).
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("millkit_bench_identify_" + std::to_string(static_cast<long>(getpid())));
   std::filesystem::create_directories(dir);
   WriteFileAtomically(dir / "record.csv", FormatOscillogram(first_noisy));
   const std::string script = kSource + "/bench/identify/scipy_identify.py";
@@ -377,8 +386,7 @@ int main(int argc, char** argv) {
       "from MillKit's local fit from the truth, in its standard errors):\n\n"
       "| MillKit | SciPy | MillKit wall s | SciPy wall s | SciPy / MillKit | MillKit's distance "
       "| SciPy's distance |\n|---|---|---|---|---|---|---|\n");
-  std::vector<double> local_values;
-  for (const auto& p : local.parameters) local_values.push_back(p.value);
+  const std::vector<double> local_values = Values(local);
   const auto row = [&](const char* millkit, double wall, const std::vector<double>& values,
                        const char* scipy_start, const SciPyFit& scipy_fit) {
     std::printf("| %s | from %s | %.4f | %.2f | %.0f× | %.3g | %.3g |\n", millkit, scipy_start,
