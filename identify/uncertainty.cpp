@@ -376,7 +376,9 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
     const double variance = covariance(i, i);
     if (!(variance > 0.0) || !std::isfinite(variance)) continue;
     const Eigen::VectorXd direction = covariance.col(i).head(p) / std::sqrt(variance);
-    const auto along = [&](double distance) { return AlongProfile(u, direction, distance); };
+    // Another parameter the direction moves past a bound is held there (random line 7832 with a
+    // fitted stiffness: dropped, those probes left the truth's valley unfollowed).
+    const auto along = [&](double distance) { return AlongProfile(u, direction, distance, i); };
     double steepest = 0.0;
     for (const double sign : {-1.0, 1.0}) {
       const std::vector<double> probe = along(sign * step);

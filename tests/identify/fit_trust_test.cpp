@@ -569,6 +569,23 @@ TEST_CASE("standard errors: parameters correlated with one not identifiable are 
   }
 }
 
+TEST_CASE("search: a curved valley is followed where its direction meets another's bound") {
+  // Random line 7832 with a fitted stiffness (6 masses, three gaps, two channels): every start
+  // ended in valleys χ² 300 and more above the truth's, the best `misfit` with the fitted
+  // stiffness 17 SE off. The probe of the curved-valley test moved another parameter past its
+  // bound and was dropped, so that valley was never followed. That parameter is held at the
+  // bound now (as in the standard errors' check): the walk reaches the truth's valley, and the
+  // starts having missed it, the verdict says so.
+  const RandomLineCase c = MakeRandomLineCase(7832, RandomLineVariant::kStiffness);
+  const DefaultFit line(c);
+  const FitResult& fit = line.fit;
+  INFO(fit.summary.verdict << ", cost " << fit.summary.cost << ", worst " << line.which << " at "
+                           << line.worst << " SE");
+  CHECK(line.worst < 3.0);
+  CHECK(fit.summary.verdict == "not_converged");
+  CHECK(fit.summary.starts_at_best == 0);
+}
+
 // Fewer than half the starts reaching the best minimum runs the search again (4 times the scan,
 // twice the starts). It was built for random line 378 (6 masses, one channel, three gaps), whose
 // four starts ended in four valleys χ² 95 to 11000 apart: one search ended χ² 95 above the
