@@ -65,6 +65,7 @@ void FitOptions::Validate() const {
   require(hops >= 0, "hops: must be >= 0");
   require(hop_radius > 0.0, "hop_radius: must be > 0");
   require(gap_kick >= 0.0 && gap_kick < 1.0, "gap_kick: must be in [0, 1)");
+  require(gap_kick_levels >= 1 && gap_kick_levels <= 8, "gap_kick_levels: must be in [1, 8]");
   require(rejoin_se >= 0.0 && rejoin_se <= 1.0, "rejoin_se: must lie in [0, 1]");
   require(preselect_factor >= 1, "preselect_factor: must be >= 1");
   require(misfit_z > 0.0, "misfit_z: must be > 0");

@@ -237,12 +237,14 @@ std::vector<std::vector<double>> GapKicks(const FitModel& model, const std::vect
   for (int i = 0; i < model.parameters(); ++i) {
     if (model.free(i).parameter.kind != driveline::SceneParameter::Kind::kBacklash) continue;
     const double gap = model.Physical(i, u[i]);
-    for (const double sign : {1.0, -1.0}) {
-      const double kicked = gap * (1.0 + sign * options.gap_kick);
-      if (kicked < model.free(i).lower || kicked > model.free(i).upper) continue;
-      std::vector<double> point(u);
-      point[i] = model.Unit(i, kicked);
-      points.push_back(std::move(point));
+    for (int level = 0; level < options.gap_kick_levels; ++level) {
+      for (const double sign : {1.0, -1.0}) {
+        const double kicked = gap * (1.0 + sign * std::ldexp(options.gap_kick, level));
+        if (kicked < model.free(i).lower || kicked > model.free(i).upper) continue;
+        std::vector<double> point(u);
+        point[i] = model.Unit(i, kicked);
+        points.push_back(std::move(point));
+      }
     }
   }
   return points;

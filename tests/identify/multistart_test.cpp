@@ -267,6 +267,41 @@ TEST_CASE("Widening a parameter's error widens what is correlated with it", "[fi
   CHECK(same == covariance);
 }
 
+// Each fitted gap is kicked gap_kick × 2ᵏ wider and narrower, k < gap_kick_levels (2 % and 4 % by
+// default), the other quantities as they are; the option is checked.
+TEST_CASE("Gap kicks come at gap_kick and twice it in either direction", "[fit]") {
+  const LineFromTruth fixture(526);
+  const identify::FitModel& model = fixture.model;
+  const std::vector<double>& u = fixture.minimum.u;
+  int gap = -1;
+  for (int i = 0; i < model.parameters(); ++i) {
+    if (model.free(i).parameter.kind == driveline::SceneParameter::Kind::kBacklash) gap = i;
+  }
+  REQUIRE(gap >= 0);
+  const double at = model.Physical(gap, u[gap]);
+  identify::FitOptions options;
+  const auto kicks = identify::GapKicks(model, u, options);
+  std::vector<double> ratios;
+  for (const auto& point : kicks) {
+    for (int i = 0; i < model.parameters(); ++i) {
+      if (i != gap) CHECK(point[i] == u[i]);
+    }
+    ratios.push_back(model.Physical(gap, point[gap]) / at);
+  }
+  std::sort(ratios.begin(), ratios.end());
+  REQUIRE(ratios.size() == 4);
+  CHECK(ratios[0] == Approx(0.96).epsilon(1e-9));
+  CHECK(ratios[1] == Approx(0.98).epsilon(1e-9));
+  CHECK(ratios[2] == Approx(1.02).epsilon(1e-9));
+  CHECK(ratios[3] == Approx(1.04).epsilon(1e-9));
+  options.gap_kick_levels = 1;
+  CHECK(identify::GapKicks(model, u, options).size() == 2);
+  options.gap_kick_levels = 0;
+  CHECK_THROWS_WITH(options.Validate(), Catch::Contains("gap_kick_levels"));
+  options.gap_kick_levels = 9;
+  CHECK_THROWS_WITH(options.Validate(), Catch::Contains("gap_kick_levels"));
+}
+
 // Random line 526 (3 masses, one channel, a 17.7 mrad gap): the search without the curved-valley
 // walk ends in a minimum whose χ² is 106 above the truth's. Two standard errors along its
 // straight profile directions the cost rises far above the prediction; followed with one

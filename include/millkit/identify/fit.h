@@ -169,12 +169,14 @@ struct FitOptions {
   int hops = 4;
   double hop_radius = 5.0;
   unsigned hop_seed = 1;
-  // Gap kicks, after the hops: each fitted backlash set gap_kick wider and narrower (relative)
-  // from the best minimum and refined with everything free. A wide gap's impact timing makes its
-  // misfit a row of narrow valleys a few per cent of the gap apart, which the hops' random
-  // directions rarely hit and a point held in the next one does not show (it costs more than
-  // the minimum until released). 0: none.
+  // Gap kicks, after the hops: each fitted backlash set gap_kick × 2ᵏ wider and narrower
+  // (relative; k = 0 … gap_kick_levels − 1: 2 % and 4 %) from the best minimum and refined with
+  // everything free. A wide gap's impact timing makes its misfit a row of narrow valleys a few
+  // per cent of the gap apart, which the hops' random directions rarely hit and a point held in
+  // the next one does not show (it costs more than the minimum until released); the next valley
+  // may lie one or two of them away (random line 1439: 2 %; 8395: 4 %). 0: none.
   double gap_kick = 0.02;
+  int gap_kick_levels = 2;
   // A fit that may only come back to a minimum already found (a basin hop to the best minimum,
   // a start's direct fit to its continued one) stops at the first iterate within rejoin_se of
   // it: the Mahalanobis length of the difference under that minimum's covariance, which bounds
