@@ -141,6 +141,18 @@ struct DefaultFit {
   double worst = 0.0;
 };
 
+// The fitted `name` lies within `k` of its standard errors of the truth's value.
+void CheckWithinStandardErrors(const FitResult& fit, const driveline::Scene& truth_scene,
+                               const std::string& name, double k) {
+  for (const auto& p : fit.parameters) {
+    if (p.name != name) continue;
+    const double truth =
+        driveline::ParseSceneParameter(truth_scene, p.name, "test").Get(truth_scene);
+    INFO(p.value << " +- " << p.standard_error << ", truth " << truth);
+    CHECK(std::abs(p.value - truth) < k * p.standard_error);
+  }
+}
+
 // Whether some warning of the fit contains `text`.
 bool Says(const FitResult& fit, const std::string& text) {
   return std::any_of(fit.summary.warnings.begin(), fit.summary.warnings.end(),
@@ -557,12 +569,7 @@ TEST_CASE("standard errors: what is correlated with a widened parameter widens w
   INFO(fit.summary.verdict << ", worst " << line.which << " at " << line.worst << " SE");
   CHECK(line.worst < 3.0);
   CHECK(Says(fit, "motor_hub1.backlash x"));  // the widening it inherits is reported
-  for (const auto& p : fit.parameters) {
-    if (p.name != "motor_hub1.backlash") continue;
-    const double truth = driveline::ParseSceneParameter(c.truth, p.name, "test").Get(c.truth);
-    INFO(p.value << " +- " << p.standard_error << ", truth " << truth);
-    CHECK(std::abs(p.value - truth) < 3.0 * p.standard_error);
-  }
+  CheckWithinStandardErrors(fit, c.truth, "motor_hub1.backlash", 3.0);
 }
 
 TEST_CASE("standard errors: parameters correlated with one not identifiable are checked too") {
@@ -577,12 +584,7 @@ TEST_CASE("standard errors: parameters correlated with one not identifiable are 
   const FitResult& fit = line.fit;
   INFO(fit.summary.verdict << ", worst " << line.which << " at " << line.worst << " SE");
   CHECK((line.worst < 5.0 || fit.summary.verdict != "ok"));
-  for (const auto& p : fit.parameters) {
-    if (p.name != "motor_gearbox.damping") continue;
-    const double truth = driveline::ParseSceneParameter(c.truth, p.name, "test").Get(c.truth);
-    INFO(p.value << " +- " << p.standard_error << ", truth " << truth);
-    CHECK(std::abs(p.value - truth) < 4.0 * p.standard_error);
-  }
+  CheckWithinStandardErrors(fit, c.truth, "motor_gearbox.damping", 4.0);
 }
 
 TEST_CASE("search: a curved valley is followed where its direction meets another's bound") {
