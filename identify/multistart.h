@@ -82,8 +82,9 @@ struct Search {
 // (MapOverCopies).
 //  1. the scan, ranked on the first continuation stage, its best preselect_factor × starts
 //     through that stage's fit (PreselectStarts), the best distinct ones refined (RefineStarts);
-//  2. when the best minimum fails the misfit test (record noise per block), once more with
-//     escalation_factor × the scan points and twice the starts, from another seed;
+//  2. when the best minimum fails the misfit test (record noise per block) or no more than half
+//     the starts reach it (within χ² 1), once more with escalation_factor × the scan points and
+//     twice the starts, from another seed;
 //  3. basin hopping from the best minimum (HopPoints), then its gaps kicked (GapKicks), then its
 //     sharply curved valleys and bounds walked (CurvedValleyPoints);
 //  4. the axis probes (ProfileProbes), restarting from a lower one up to profile_restarts times.

@@ -604,33 +604,58 @@ TEST_CASE("search: a curved valley is followed where its direction meets another
   CHECK(fit.summary.starts_at_best == 0);
 }
 
-// Fewer than half the starts reaching the best minimum runs the search again (4 times the scan,
-// twice the starts). It was built for random line 378 (6 masses, one channel, three gaps), whose
-// four starts ended in four valleys χ² 95 to 11000 apart: one search ended χ² 95 above the
-// truth's minimum, `ok` with a damping 12 standard errors off, and the second found the truth's.
-// Which valley a start ends in moves with roundoff: since the limited law's corner takes the
-// spring-damper piece (2026-11-28) line 378's single search reaches the truth's valley, and no
-// line of seeds 100–699 needs the second search to be right (scanned with it off). Line 413
-// (6 masses, three gaps) still scatters its starts: 1 of 4 at the best.
-TEST_CASE("verdict ok: starts scattered over many valleys run the search again") {
-  const RandomLineCase c = MakeRandomLineCase(413);
-  const auto fits = FitWithAndWithout(c, [](FitOptions* o) { o->escalation_factor = 1; });
+namespace {
+
+// A random line fitted with one search and with the default, which runs the search again when no
+// more than half the starts reach the best minimum (4 times the scan, twice the starts): checks
+// the trigger and that the second search ends at a minimum no worse, within 3 SE.
+WithAndWithout CheckSearchedAgain(const RandomLineCase& c) {
+  auto fits = FitWithAndWithout(c, [](FitOptions* o) { o->escalation_factor = 1; });
   const FitResult& once = fits.without;
   const FitResult& fit = fits.with;
-  INFO("one search: " << once.summary.verdict << ", " << once.summary.starts_at_best << "/"
-                      << once.summary.starts << " starts at the best, worst " << fits.which_without
-                      << " at " << fits.worst_without << " SE");
-  CHECK(2 * once.summary.starts_at_best < once.summary.starts);  // what runs the search again
+  INFO("one search: " << once.summary.verdict << ", cost " << once.summary.cost << ", "
+                      << once.summary.starts_at_best << "/" << once.summary.starts
+                      << " starts at the best, worst " << fits.which_without << " at "
+                      << fits.worst_without << " SE");
+  CHECK(2 * once.summary.starts_at_best <= once.summary.starts);  // what runs the search again
   CHECK_FALSE(once.summary.escalated);
   std::string which;
   const double worst = WorstZ(fit, c.truth, &which);
-  INFO("searched twice: " << fit.summary.verdict << ", worst " << which << " at " << worst
-                          << " SE");
+  INFO("searched twice: " << fit.summary.verdict << ", cost " << fit.summary.cost << ", worst "
+                          << which << " at " << worst << " SE");
   CHECK(fit.summary.escalated);
   CHECK(fit.summary.starts == 3 * once.summary.starts);
   CHECK(fit.summary.cost <= once.summary.cost + 1e-6);  // never a worse minimum
   CHECK(worst < 3.0);
-  CHECK(fit.summary.verdict == "ok");
+  return fits;
+}
+
+}  // namespace
+
+// The second search was built for random line 378 (6 masses, one channel, three gaps), whose
+// four starts ended in four valleys χ² 95 to 11000 apart: one search ended χ² 95 above the truth's
+// minimum, `ok` with a damping 12 standard errors off, and the second found the truth's. Which
+// valley a start ends in moves with roundoff: since the limited law's corner takes the
+// spring-damper piece (2026-11-28) line 378's single search reaches the truth's valley, and no line
+// of seeds 100–699 needs the second search to be right (scanned with it off). Line 413 (6 masses,
+// three gaps) still scatters its starts: 1 of 4 at the best.
+TEST_CASE("verdict ok: starts scattered over many valleys run the search again") {
+  const auto fits = CheckSearchedAgain(MakeRandomLineCase(413));
+  CHECK(fits.with.summary.verdict == "ok");
+}
+
+// Half the starts are not a majority. Random line 8708 with a wide prior (6 masses, five gaps,
+// one channel): 2 of 4 starts end in one valley, χ² 34 above the truth's minimum with a damping
+// 11.8 SE off; the residual is 12 % above the noise, which the misfit test cannot tell from
+// noise. Searched again, the truth's valley is the best.
+TEST_CASE("verdict ok: a wrong valley that half the starts reach runs the search again") {
+  const auto fits = CheckSearchedAgain(MakeRandomLineCase(8708, RandomLineVariant::kWidePrior));
+  const FitResult& once = fits.without;
+  CHECK(2 * once.summary.starts_at_best == once.summary.starts);
+  CHECK(once.summary.verdict == "ok");
+  CHECK(fits.worst_without > 5.0);
+  CHECK(2.0 * (once.summary.cost - fits.with.summary.cost) > 20.0);
+  CHECK(fits.with.summary.verdict == "ok");
 }
 
 // Random line 526 (3 masses, one channel, a 17.7 mrad gap): every start and every basin hop
