@@ -83,7 +83,9 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
 // relaxed probe lies lower, and that side of the profile is followed with the parameter held
 // (FitOptions::profile_relax_widening; and where the straight probe rises past
 // profile_bend_ratio times the prediction, since the valley then bends too sharply for a step
-// with the minimum's Jacobian to say); each point held at distance d with a profile χ² widens
+// with the minimum's Jacobian to say; a side that passes both is probed and relaxed again at
+// twice profile_step, where a profile quadratic to the step may flatten: a shoulder); each
+// point held at distance d with a profile χ² widens
 // to d / √max(χ², 1). Every such point, and every point of `bound_walks` (CurvedValleyPoints),
 // with a χ² below profile_chi2 widens every parameter p it moved by d_p to d_p / √max(χ², 1):
 // in the quadratic picture the linearisation draws, no point at χ² lies further than √χ²

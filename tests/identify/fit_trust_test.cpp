@@ -179,6 +179,33 @@ WithAndWithout FitWithAndWithout(const RandomLineCase& c, void (*switch_off)(Fit
   return fits;
 }
 
+// Only the standard errors differ between the two fits: the same values, and the parameter
+// `widened` (when named) has an error more than `factor` times the one it had without.
+void CheckSameMinimum(const WithAndWithout& fits, const std::string& widened = "",
+                      double factor = 1.0) {
+  REQUIRE(fits.with.parameters.size() == fits.without.parameters.size());
+  for (size_t i = 0; i < fits.with.parameters.size(); ++i) {
+    const ParameterEstimate& with = fits.with.parameters[i];
+    const ParameterEstimate& without = fits.without.parameters[i];
+    CHECK(with.value == without.value);
+    if (with.name == widened) CHECK(with.standard_error > factor * without.standard_error);
+  }
+}
+
+// A random line fitted without any profile followed (profile_relax_widening 0) and with the
+// defaults: the first `ok` more than 5 SE off, the second within 3 SE.
+WithAndWithout CheckFollowedIntoThreeSe(const RandomLineCase& c) {
+  auto fits = FitWithAndWithout(c, [](FitOptions* o) { o->profile_relax_widening = 0.0; });
+  INFO("not followed: worst " << fits.which_without << " at " << fits.worst_without << " SE");
+  CHECK(fits.worst_without > 5.0);
+  CHECK(fits.without.summary.verdict == "ok");
+  std::string which;
+  const double worst = WorstZ(fits.with, c.truth, &which);
+  INFO("followed: worst " << which << " at " << worst << " SE");
+  CHECK(worst < 3.0);
+  return fits;
+}
+
 Oscillogram Rounded(Oscillogram record, int digits) {
   for (auto& column : record.values) {
     for (double& v : column) {
@@ -453,26 +480,23 @@ TEST_CASE("standard errors: a valley that curves away from the straight profile 
 // channel): the two dampings either side of the gearbox trade against each other along a valley
 // that is flat for a decade (the profile of the gearbox one rises only χ² 2.9, 4.7 and 5.8 at
 // 2, 3 and 4 linearised SE, then falls to 5.1 at 6 SE). Relaxed at 2 SE the probe implies a
-// standard error 1.15–1.25 times the linearised one; followed only above 1.25, the fit was
-// `ok` with both dampings 6 SE from the truth, whose χ² is only 7.6 above the minimum's.
+// standard error 1.15–1.25 times the linearised one; not followed, the fit was `ok` with both
+// dampings 6 SE from the truth, whose χ² is only 7.6 above the minimum's. Until the relaxed probe
+// at 4 SE (2026-11-29) it was followed only with the threshold at 1.15, not at 1.25; that probe
+// now follows it at 1.25 too.
 TEST_CASE(
     "standard errors: a profile a little flatter than its linearisation at 2 SE is followed") {
   const RandomLineCase c = MakeRandomLineCase(252, RandomLineVariant::kStepLoad);
-  const auto fits = FitWithAndWithout(c, [](FitOptions* o) { o->profile_relax_widening = 1.25; });
-  INFO("followed above 1.25: worst " << fits.which_without << " at " << fits.worst_without
-                                     << " SE");
-  CHECK(fits.worst_without > 5.0);
-  CHECK(fits.without.summary.verdict == "ok");
-  std::string which;
-  const double worst = WorstZ(fits.with, c.truth, &which);
-  INFO("followed above 1.15: worst " << which << " at " << worst << " SE");
-  CHECK(worst < 3.0);
+  const auto fits = CheckFollowedIntoThreeSe(c);
   CHECK(fits.with.summary.verdict == "ok");
-  // Only the standard errors differ: the same minimum.
-  REQUIRE(fits.with.parameters.size() == fits.without.parameters.size());
-  for (size_t i = 0; i < fits.with.parameters.size(); ++i) {
-    CHECK(fits.with.parameters[i].value == fits.without.parameters[i].value);
-  }
+  CheckSameMinimum(fits);
+  FitOptions coarser;
+  coarser.profile_relax_widening = 1.25;
+  const FitResult at_125 = Fit(c.prior, c.record, c.config, coarser);
+  std::string which;
+  const double worst_at_125 = WorstZ(at_125, c.truth, &which);
+  INFO("followed above 1.25: worst " << which << " at " << worst_at_125 << " SE");
+  CHECK(worst_at_125 < 3.0);
 }
 
 TEST_CASE("standard errors: a profile whose valley bends sharply is followed") {
@@ -485,10 +509,7 @@ TEST_CASE("standard errors: a profile whose valley bends sharply is followed") {
   const double worst = WorstZ(fits.with, c.truth, &which);
   INFO("followed: worst " << which << " at " << worst << " SE");
   CHECK(worst < 3.0);
-  REQUIRE(fits.with.parameters.size() == fits.without.parameters.size());
-  for (size_t i = 0; i < fits.with.parameters.size(); ++i) {
-    CHECK(fits.with.parameters[i].value == fits.without.parameters[i].value);
-  }
+  CheckSameMinimum(fits);
 }
 
 // Random line 712 (6 masses, two channels): the motor coupling's and the next shaft's dampings
@@ -507,15 +528,18 @@ TEST_CASE("standard errors: a profile that bends 10 to 30 times the prediction i
   const double worst = WorstZ(fits.with, c.truth, &which);
   INFO("followed past 10: worst " << which << " at " << worst << " SE");
   CHECK(worst < 4.0);
-  REQUIRE(fits.with.parameters.size() == fits.without.parameters.size());
-  for (size_t i = 0; i < fits.with.parameters.size(); ++i) {
-    const ParameterEstimate& with = fits.with.parameters[i];
-    const ParameterEstimate& without = fits.without.parameters[i];
-    CHECK(with.value == without.value);
-    if (with.name == "coupling_hub_gearbox.damping") {
-      CHECK(with.standard_error > 1.5 * without.standard_error);
-    }
-  }
+  CheckSameMinimum(fits, "coupling_hub_gearbox.damping", 1.5);
+}
+
+// Random line 8831 under no_pull (3 masses, two channels, a 1.8 mrad gap next to the motor; first
+// seen in the first run of seeds 8801–9000): the fit from the truth ends at the same minimum,
+// the gap 5.6 linearised standard errors below the truth. Held and refitted, its profile rises
+// χ² 3.3 at 2 standard errors, as the linearisation predicts, then flattens: 3.2 at 2.8, 4.6 at
+// 4.5, 6.7 at the truth. The relaxed probe at 4 standard errors sees the shoulder, and the
+// profile followed there widens the gap's error about twice.
+TEST_CASE("standard errors: a profile quadratic to 2 SE that flattens beyond is followed") {
+  const auto fits = CheckFollowedIntoThreeSe(MakeRandomLineCase(8831, RandomLineVariant::kNoPull));
+  CheckSameMinimum(fits, "motor_gearbox.backlash", 1.5);
 }
 
 // Random line 958 (3 masses, no gap, one channel; a seed the defaults were not tuned on): every
@@ -540,20 +564,14 @@ TEST_CASE("standard errors: points held on walks widen every parameter they move
   const double worst = WorstZ(fits.with, c.truth, &which);
   INFO("walked: " << fits.with.summary.verdict << ", worst " << which << " at " << worst << " SE");
   CHECK(worst < 3.0);
-  REQUIRE(fits.with.parameters.size() == fits.without.parameters.size());
+  // The walk finds nothing lower: only errors widen.
+  CheckSameMinimum(fits, "motor_gearbox.damping", 2.0);
   for (size_t i = 0; i < fits.with.parameters.size(); ++i) {
-    const ParameterEstimate& with = fits.with.parameters[i];
-    const ParameterEstimate& without = fits.without.parameters[i];
-    CHECK(with.value == without.value);  // the walk finds nothing lower: only errors widen
-    if (with.name == "spindle.damping") {
-      CHECK(with.at_bound);
-      // Not identifiable either way: its standard error spans most of its log range.
-      CHECK_FALSE(without.identifiable);
-      CHECK(without.why_not.find("log scale") != std::string::npos);
-    }
-    if (with.name == "motor_gearbox.damping") {
-      CHECK(with.standard_error > 2.0 * without.standard_error);
-    }
+    if (fits.with.parameters[i].name != "spindle.damping") continue;
+    CHECK(fits.with.parameters[i].at_bound);
+    // Not identifiable either way: its standard error spans most of its log range.
+    CHECK_FALSE(fits.without.parameters[i].identifiable);
+    CHECK(fits.without.parameters[i].why_not.find("log scale") != std::string::npos);
   }
 }
 
