@@ -85,13 +85,13 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
 // profile_bend_ratio times the prediction, since the valley then bends too sharply for a step
 // with the minimum's Jacobian to say; a side that passes both is probed and relaxed again at
 // twice profile_step, where a profile quadratic to the step may flatten: a shoulder); each
-// point held at distance d with a profile χ² widens
-// to d / √max(χ², 1). Every such point, and every point of `bound_walks` (CurvedValleyPoints),
-// with a χ² below profile_chi2 widens every parameter p it moved by d_p to d_p / √max(χ², 1):
-// in the quadratic picture the linearisation draws, no point at χ² lies further than √χ²
-// standard errors in any parameter. Returns the widening factor per scene slot (1 where none), sets
-// `lower` to the lowest point a probe found below the minimum's cost (the fit had not reached its
-// minimum; empty when none did), and counts the followed sides in `relaxed_walks` when given.
+// point held at distance d with a profile χ² widens to d / √max(χ², 1). Every such point, and every
+// point of `bound_walks` (CurvedValleyPoints), with a χ² below profile_chi2 widens every parameter
+// p it moved by d_p to d_p / √max(χ², 1): in the quadratic picture the linearisation draws, no
+// point at χ² lies further than √χ² standard errors in any parameter. Returns the widening factor
+// per scene slot (1 where none), sets `lower` to the lowest point a probe found below the minimum's
+// cost (the fit had not reached its minimum; empty when none did), and counts the followed sides in
+// `relaxed_walks` when given.
 std::vector<double> ProfileWidening(const FitModel& model, const std::vector<double>& u,
                                     const Eigen::MatrixXd& jacobian, const std::vector<int>& fitted,
                                     const Eigen::MatrixXd& covariance, double best_cost,

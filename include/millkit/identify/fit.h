@@ -141,10 +141,12 @@ struct FitOptions {
   // (the Jacobian at the minimum), since the valley may curve away from the straight profile
   // direction. Where a relaxed probe implies a standard error more than profile_relax_widening
   // times the linearised one, or the straight probe rises more than profile_bend_ratio times
-  // the prediction, that side of the profile is followed: Levenberg–Marquardt with the
-  // parameter held (profile_iterations each) at profile_step × 1, 2, 4, … up to
-  // profile_relax_reach standard errors, until χ² passes profile_chi2 or a bound; each point
-  // held at χ² widens every parameter it moved by d to d / √max(χ², 1). 0: no relaxing.
+  // the prediction, or the relaxed probe at 2 × profile_step implies more than
+  // profile_relax_widening times (a profile that flattens beyond the step), that side of the
+  // profile is followed: Levenberg–Marquardt with the parameter held (profile_iterations each)
+  // at profile_step × 1, 2, 4, … up to profile_relax_reach standard errors, until χ² passes
+  // profile_chi2 or a bound; each point held at χ² widens every parameter it moved by d to
+  // d / √max(χ², 1). 0: no relaxing.
   double profile_relax_widening = 1.15;
   double profile_bend_ratio = 10.0;
   int profile_iterations = 3;
