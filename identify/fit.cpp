@@ -61,6 +61,8 @@ void FitOptions::Validate() const {
   require(curved_valley_ratio >= 0.0, "curved_valley_ratio: must be >= 0");
   require(curved_valley_iterations >= 1, "curved_valley_iterations: must be >= 1");
   require(open_gap_points >= 0 && open_gap_points <= 20, "open_gap_points: must be in [0, 20]");
+  require(gap_profile_points >= 0 && gap_profile_points <= 64,
+          "gap_profile_points: must be in [0, 64]");
   require(escalation_factor >= 1, "escalation_factor: must be >= 1");
   require(hops >= 0, "hops: must be >= 0");
   require(hop_radius > 0.0, "hop_radius: must be > 0");
@@ -519,8 +521,12 @@ bool DescribeBest(const FitModel& model, const Search& search, const RecordAsses
   const auto widening =
       ProfileWidening(model, u, jac, fitted, covariance, summary.cost, summary.noise_scale, options,
                       search.probes, search.bound_walks, lower);
+  const auto alone = GapRangeWidening(model, u, covariance, summary.cost, summary.noise_scale,
+                                      options, search.gap_points);
   const Eigen::MatrixXd linearised = covariance;
-  WidenAlongProfiles(widening, &covariance);
+  Eigen::MatrixXd along_profiles = covariance;  // for the plateau test (FlagPlateaus)
+  WidenAlongProfiles(widening, &along_profiles);
+  WidenAlongProfiles(widening, &covariance, alone);
   std::string widened;
   for (int i = 0; i < model.parameters(); ++i) {
     const double factor = std::sqrt(covariance(i, i) / linearised(i, i));
@@ -541,7 +547,11 @@ bool DescribeBest(const FitModel& model, const Search& search, const RecordAsses
     result->parameters.push_back(e);
   }
   FlagUnidentifiable(model, jac, fitted, summary.noise_scale, options, result);
-  FlagPlateaus(model, search.probes, result);
+  std::vector<double> plateau_errors(model.parameters());
+  for (int i = 0; i < model.parameters(); ++i) {
+    plateau_errors[i] = std::sqrt(along_profiles(i, i)) * model.slot(i).map.PhysicalPerUnit(u[i]);
+  }
+  FlagPlateaus(model, search.probes, plateau_errors, result);
   FillChannels(model, m, nuisance, assessment.noise, result);
   for (int b = 0; b < model.blocks(); ++b) {
     auto& c = result->channels[b];

@@ -470,8 +470,9 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
   refine_beside_best(GapKicks(*model, minima[search.best].u, options));
   // A valley that bends sharply within a few standard errors: followed, a lower one along it.
   model->set_activity("following curved valleys");
-  const std::vector<std::vector<double>> curved = CurvedValleyPoints(
-      *model, minima[search.best].u, minima[search.best].cost, options, &search.bound_walks);
+  const std::vector<std::vector<double>> curved =
+      CurvedValleyPoints(*model, minima[search.best].u, minima[search.best].cost, options,
+                         &search.bound_walks, &search.gap_points);
   if (!curved.empty()) {
     LocalFit fit = Refine(*model, options, curved.front(), true, options.max_iterations);
     fit.start = -1;

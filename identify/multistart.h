@@ -75,6 +75,7 @@ struct Search {
   bool escalated = false;
   std::vector<ProfileProbe> probes;       // the axis probes around the best minimum
   std::vector<ProfileProbe> bound_walks;  // held fits inward from a bound (CurvedValleyPoints)
+  std::vector<ProfileProbe> gap_points;   // held fits across a gap's range (the same)
 };
 
 // The whole search from the start point (unit coordinates). The scan, the preselection, the

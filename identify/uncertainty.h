@@ -67,11 +67,15 @@ std::vector<std::vector<double>> GapKicks(const FitModel& model, const std::vect
 // inward: held at 1/16, 1/8, 1/4 and 1/2 of its range from the bound, the others refitted the
 // same way; those held fits go to `bound_walks` (slot, point, cost) as well. A gap the record
 // hardly depends on (it never closes at u) is held just below the edge of its plateau, where it
-// starts to close (FitOptions::open_gap_points), the others refitted the same way.
+// starts to close (FitOptions::open_gap_points), the others refitted the same way. Every fitted
+// gap is held across its range, at (k + ½)/gap_profile_points in unit coordinates except within
+// profile_step standard errors of u, the others refitted (profile_iterations each): a second
+// valley behind a wall; these held fits go to `gap_points`.
 std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
                                                     const std::vector<double>& u, double cost,
                                                     const FitOptions& options,
-                                                    std::vector<ProfileProbe>* bound_walks);
+                                                    std::vector<ProfileProbe>* bound_walks,
+                                                    std::vector<ProfileProbe>* gap_points);
 
 // The profile check: for each scene parameter i, θ moves along its profile
 // direction C e_i / √C_ii by ± profile_step (in standard errors); the linearisation predicts the
@@ -101,18 +105,35 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
                                     std::optional<ProfileProbe>* lower,
                                     int* relaxed_walks = nullptr);
 
+// The widening the points held across a gap's range (CurvedValleyPoints' `gap_points`) imply:
+// one within profile_chi2 of the best χ² that moved parameter j by d_j widens j's error to
+// d_j / √max(χ², 1), the held gap's as well as the others'. Per scene slot, 1 where none. These
+// points lie far outside the linearisation's reach: what they imply for each parameter is what
+// they moved it by, not what its correlations at the minimum would carry (WidenAlongProfiles'
+// `alone`).
+std::vector<double> GapRangeWidening(const FitModel& model, const std::vector<double>& u,
+                                     const Eigen::MatrixXd& covariance, double best_cost,
+                                     double noise_scale, const FitOptions& options,
+                                     const std::vector<ProfileProbe>& gap_points);
+
 // Widens `covariance` (scene slots first, as Covariance) by ProfileWidening's factors. A
 // profile flatter than the linearisation widens that parameter's spread by w; the others keep
 // their spread given it (their regression on it and what is left), so whatever is correlated
 // with it widens too: C += (w² − 1) c_i c_iᵀ / C_ii for every slot i with 1 < w < ∞, each term
 // from the covariance as given. Its own variance becomes at least w² C_ii, and a quantity with
-// correlation ρ to it gets C_jj (1 + (w² − 1) ρ²).
-void WidenAlongProfiles(const std::vector<double>& widening, Eigen::MatrixXd* covariance);
+// correlation ρ to it gets C_jj (1 + (w² − 1) ρ²). Then each slot i with a factor a > 1 in
+// `alone` has its variance raised to at least a² C_ii (the covariance as given), its row and
+// column scaled: its correlations are kept and nothing is carried over to the others.
+void WidenAlongProfiles(const std::vector<double>& widening, Eigen::MatrixXd* covariance,
+                        const std::vector<double>& alone = {});
 
 // Flags a parameter not identifiable where neighbouring axis probes have the same cost: the
 // record does not change over that range (a gap that never closes there), so the local standard
-// error describes only one side.
+// error describes only one side. A plateau more than 3 standard errors away, by
+// `standard_errors` (per scene slot: the errors before the points held across a gap's range
+// widened them, since those points lie on such plateaus themselves and say only what the plateau
+// says), bounds it from one side only.
 void FlagPlateaus(const FitModel& model, const std::vector<ProfileProbe>& probes,
-                  FitResult* result);
+                  const std::vector<double>& standard_errors, FitResult* result);
 
 }  // namespace millkit::identify

@@ -234,17 +234,37 @@ TEST_CASE("A held point widens every standard error it moved further than its ch
       CHECK(near[i] == without[i]);
     }
   }
+  // The same point held across a gap's range: the same rule, with nothing else widening.
+  identify::ProfileProbe point{slot, fixture.minimum.u,
+                               at.cost + 2.0 * at.noise_scale * at.noise_scale};  // χ² 4
+  point.u[slot] += 6.0 * std::sqrt(at.covariance(slot, slot));
+  point.u[other] -= 4.0 * std::sqrt(at.covariance(other, other));
+  const auto across = identify::GapRangeWidening(model, fixture.minimum.u, at.covariance, at.cost,
+                                                 at.noise_scale, options, {point});
+  for (int i = 0; i < model.parameters(); ++i) {
+    CHECK(across[i] == Approx(i == slot ? 3.0 : i == other ? 2.0 : 1.0).epsilon(1e-9));
+  }
 }
+
+namespace {
+
+// Standard errors 2, 1, 3; correlation 0.6 between the first two, none with the third.
+Eigen::MatrixXd TwoCorrelatedOfThree() {
+  Eigen::MatrixXd covariance(3, 3);
+  covariance << 4.0, 1.2, 0.0,  //
+      1.2, 1.0, 0.0,            //
+      0.0, 0.0, 9.0;
+  return covariance;
+}
+
+}  // namespace
 
 // A widened parameter carries what is correlated with it: its own spread ×w, a quantity with
 // correlation ρ to it ×√(1 + (w² − 1) ρ²), their covariance ×w² (its regression on the widened
 // one kept), an uncorrelated one untouched. A factor of 1 or ∞ (a lower cost found) widens
 // nothing.
 TEST_CASE("Widening a parameter's error widens what is correlated with it", "[fit]") {
-  Eigen::MatrixXd covariance(3, 3);
-  covariance << 4.0, 1.2, 0.0,  // standard errors 2, 1, 3; correlation 0.6 between the first two
-      1.2, 1.0, 0.0,            //
-      0.0, 0.0, 9.0;
+  const Eigen::MatrixXd covariance = TwoCorrelatedOfThree();
   Eigen::MatrixXd widened = covariance;
   identify::WidenAlongProfiles({3.0, 1.0, 1.0}, &widened);
   CHECK(widened(0, 0) == Approx(9.0 * 4.0));
@@ -265,6 +285,33 @@ TEST_CASE("Widening a parameter's error widens what is correlated with it", "[fi
   Eigen::MatrixXd same = covariance;
   identify::WidenAlongProfiles({1.0, std::numeric_limits<double>::infinity(), 1.0}, &same);
   CHECK(same == covariance);
+}
+
+// A widening `alone` (points held far beyond the linearisation's reach, across a gap's range)
+// scales the parameter's row and column: its correlations stay, nothing is carried over; and it
+// only ever raises the variance to its factor² times the one given, whatever the other widening
+// did first.
+TEST_CASE("Widening a parameter's error alone keeps its correlations", "[fit]") {
+  const Eigen::MatrixXd covariance = TwoCorrelatedOfThree();
+  Eigen::MatrixXd alone = covariance;
+  identify::WidenAlongProfiles({1.0, 1.0, 1.0}, &alone, {3.0, 1.0, 1.0});
+  CHECK(alone(0, 0) == Approx(9.0 * 4.0));
+  CHECK(alone(1, 1) == 1.0);
+  CHECK(alone(0, 1) == Approx(3.0 * 1.2));
+  CHECK(alone(1, 0) == alone(0, 1));
+  CHECK(alone(2, 2) == 9.0);
+  // Carried over ×2 first (variance 16), then raised to 3² × 4 = 36: row and column ×1.5.
+  Eigen::MatrixXd both = covariance;
+  identify::WidenAlongProfiles({2.0, 1.0, 1.0}, &both, {3.0, 1.0, 1.0});
+  Eigen::MatrixXd carried = covariance;
+  identify::WidenAlongProfiles({2.0, 1.0, 1.0}, &carried);
+  CHECK(both(0, 0) == Approx(36.0));
+  CHECK(both(0, 1) == Approx(1.5 * carried(0, 1)));
+  CHECK(both(1, 1) == carried(1, 1));
+  // A factor below what the carried widening reached changes nothing.
+  Eigen::MatrixXd less = covariance;
+  identify::WidenAlongProfiles({2.0, 1.0, 1.0}, &less, {1.5, 1.0, 1.0});
+  CHECK(less == carried);
 }
 
 // Each fitted gap is kicked gap_kick × 2ᵏ wider and narrower, k < gap_kick_levels (2 % and 4 % by
@@ -302,6 +349,49 @@ TEST_CASE("Gap kicks come at gap_kick and twice it in either direction", "[fit]"
   CHECK_THROWS_WITH(options.Validate(), Catch::Contains("gap_kick_levels"));
 }
 
+// Each fitted gap is held at (k + ½)/gap_profile_points of its range (unit coordinates), the
+// others refitted, except near the minimum, where the profile check probes; the option is
+// checked.
+TEST_CASE("A gap is held across its range", "[fit]") {
+  const LineFromTruth fixture(526);
+  const identify::FitModel& model = fixture.model;
+  const std::vector<double>& u = fixture.minimum.u;
+  int gap = -1;
+  for (int i = 0; i < model.parameters(); ++i) {
+    if (model.free(i).parameter.kind == driveline::SceneParameter::Kind::kBacklash) gap = i;
+  }
+  REQUIRE(gap >= 0);
+  identify::FitOptions options;
+  std::vector<identify::ProfileProbe> walks;
+  std::vector<identify::ProfileProbe> gap_points;
+  identify::CurvedValleyPoints(model, u, fixture.minimum.cost, options, &walks, &gap_points);
+  std::vector<bool> held(options.gap_profile_points, false);
+  for (const auto& point : gap_points) {
+    CHECK(point.slot == gap);
+    const double k = point.u[gap] * options.gap_profile_points - 0.5;
+    CHECK(k == Approx(std::round(k)).margin(1e-12));
+    const auto index = static_cast<size_t>(std::lround(k));
+    REQUIRE(index < held.size());
+    CHECK_FALSE(held[index]);
+    held[index] = true;
+    CHECK(point.cost >= fixture.minimum.cost);  // the truth's minimum: nothing lower
+  }
+  for (size_t k = 0; k < held.size(); ++k) {
+    const double at = (static_cast<double>(k) + 0.5) / options.gap_profile_points;
+    INFO("k " << k << ", at " << at << ", the minimum at " << u[gap]);
+    if (!held[k]) CHECK(std::abs(at - u[gap]) < 1.0 / options.gap_profile_points);
+  }
+  CHECK(gap_points.size() >= held.size() - 2);
+  options.gap_profile_points = 0;
+  gap_points.clear();
+  identify::CurvedValleyPoints(model, u, fixture.minimum.cost, options, &walks, &gap_points);
+  CHECK(gap_points.empty());
+  options.gap_profile_points = -1;
+  CHECK_THROWS_WITH(options.Validate(), Catch::Contains("gap_profile_points"));
+  options.gap_profile_points = 65;
+  CHECK_THROWS_WITH(options.Validate(), Catch::Contains("gap_profile_points"));
+}
+
 // Random line 526 (3 masses, one channel, a 17.7 mrad gap): the search without the curved-valley
 // walk ends in a minimum whose χ² is 106 above the truth's. Two standard errors along its
 // straight profile directions the cost rises far above the prediction; followed with one
@@ -323,11 +413,13 @@ TEST_CASE("A sharply curved valley is followed down to a lower one", "[fit]") {
   const identify::LocalFit wrong = identify::Refine(model, options, u, true, 100);
   REQUIRE(wrong.cost > fixture.minimum.cost + 20.0);
   std::vector<identify::ProfileProbe> bound_walks;
-  CHECK(identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options, &bound_walks).empty());
+  std::vector<identify::ProfileProbe> gap_points;
+  CHECK(identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options, &bound_walks, &gap_points)
+            .empty());
 
   options.curved_valley_ratio = identify::FitOptions{}.curved_valley_ratio;
   const auto lower =
-      identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options, &bound_walks);
+      identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options, &bound_walks, &gap_points);
   REQUIRE_FALSE(lower.empty());
   double previous = -1.0;
   for (const auto& point : lower) {
@@ -340,7 +432,7 @@ TEST_CASE("A sharply curved valley is followed down to a lower one", "[fit]") {
   CHECK(found.cost == Approx(fixture.minimum.cost).epsilon(1e-4));
   // From the truth's minimum nothing lies lower.
   CHECK(identify::CurvedValleyPoints(model, fixture.minimum.u, fixture.minimum.cost, options,
-                                     &bound_walks)
+                                     &bound_walks, &gap_points)
             .empty());
 }
 
@@ -352,7 +444,8 @@ TEST_CASE("A sharply curved valley is followed down to a lower one", "[fit]") {
 TEST_CASE("A parameter at its bound has its profile followed inward", "[fit]") {
   const LineFromTruth fixture(883);
   const identify::FitModel& model = fixture.model;
-  const identify::FitOptions options;
+  identify::FitOptions options;
+  options.gap_profile_points = 0;  // the lower valley found by the walk alone
   // Where the search ended before the walk (minima[] of its fit.json).
   const std::vector<std::pair<std::string, double>> ended = {
       {"spindle1.damping", 2.66e5},     {"spindle1.backlash", 0.0024321},
@@ -371,7 +464,10 @@ TEST_CASE("A parameter at its bound has its profile followed inward", "[fit]") {
   REQUIRE(wrong.cost > fixture.minimum.cost + 20.0);
 
   std::vector<identify::ProfileProbe> walks;
-  const auto lower = identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options, &walks);
+  std::vector<identify::ProfileProbe> gap_points;
+  const auto lower =
+      identify::CurvedValleyPoints(model, wrong.u, wrong.cost, options, &walks, &gap_points);
+  CHECK(gap_points.empty());
   REQUIRE(walks.size() == 4);
   for (size_t k = 0; k < walks.size(); ++k) {
     CHECK(walks[k].slot == 2);
@@ -381,7 +477,8 @@ TEST_CASE("A parameter at its bound has its profile followed inward", "[fit]") {
   CHECK(model.ProjectedCost(lower.front().data()) < wrong.cost - 1.0);
   // From the truth's minimum, where nothing is at a bound, there is no walk.
   walks.clear();
-  identify::CurvedValleyPoints(model, fixture.minimum.u, fixture.minimum.cost, options, &walks);
+  identify::CurvedValleyPoints(model, fixture.minimum.u, fixture.minimum.cost, options, &walks,
+                               &gap_points);
   CHECK(walks.empty());
 }
 

@@ -166,6 +166,14 @@ struct FitOptions {
   // (the others held), and the gap held at edge × (1 − 2⁻ᵏ), k = open_gap_points … 1 (in unit
   // coordinates), the others refitted; a lower point found is refined as above. 0: none.
   int open_gap_points = 6;
+  // With the curved valleys: every fitted backlash held at gap_profile_points points evenly
+  // across its range ((k + ½)/points in unit coordinates; none within profile_step standard
+  // errors of the best minimum), the others refitted (profile_iterations each). A gap's profile
+  // can have a second valley behind a wall that the probes near the minimum never cross: a held
+  // point within profile_chi2 that moved a parameter by d widens its error to d / √max(χ², 1),
+  // the gap's and the others' (nothing carried over by their correlations at the minimum, which
+  // say nothing that far away), and a lower one is refined. 0: none.
+  int gap_profile_points = 8;
   // Basin hopping from the best minimum: hops refinements from points hop_radius standard
   // errors away in random directions (seeded by hop_seed); a lower one becomes the best.
   int hops = 4;
