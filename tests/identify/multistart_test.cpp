@@ -248,6 +248,15 @@ TEST_CASE("A held point widens every standard error it moved further than its ch
 
 namespace {
 
+// The slot of the model's last fitted backlash; −1 when none is fitted.
+int LastGapSlot(const identify::FitModel& model) {
+  int gap = -1;
+  for (int i = 0; i < model.parameters(); ++i) {
+    if (model.free(i).parameter.kind == driveline::SceneParameter::Kind::kBacklash) gap = i;
+  }
+  return gap;
+}
+
 // Standard errors 2, 1, 3; correlation 0.6 between the first two, none with the third.
 Eigen::MatrixXd TwoCorrelatedOfThree() {
   Eigen::MatrixXd covariance(3, 3);
@@ -320,10 +329,7 @@ TEST_CASE("Gap kicks come at gap_kick and twice it in either direction", "[fit]"
   const LineFromTruth fixture(526);
   const identify::FitModel& model = fixture.model;
   const std::vector<double>& u = fixture.minimum.u;
-  int gap = -1;
-  for (int i = 0; i < model.parameters(); ++i) {
-    if (model.free(i).parameter.kind == driveline::SceneParameter::Kind::kBacklash) gap = i;
-  }
+  const int gap = LastGapSlot(model);
   REQUIRE(gap >= 0);
   const double at = model.Physical(gap, u[gap]);
   identify::FitOptions options;
@@ -356,10 +362,7 @@ TEST_CASE("A gap is held across its range", "[fit]") {
   const LineFromTruth fixture(526);
   const identify::FitModel& model = fixture.model;
   const std::vector<double>& u = fixture.minimum.u;
-  int gap = -1;
-  for (int i = 0; i < model.parameters(); ++i) {
-    if (model.free(i).parameter.kind == driveline::SceneParameter::Kind::kBacklash) gap = i;
-  }
+  const int gap = LastGapSlot(model);
   REQUIRE(gap >= 0);
   identify::FitOptions options;
   std::vector<identify::ProfileProbe> walks;
