@@ -43,7 +43,7 @@ slow+="|Records at 1 and 10 kHz|identify reads a .mat record with logger time"
 slow+="|A second noisy record shrinks|verdict misfit|identify reports a gap the record cannot tell"
 slow+="|Modelling the recorder's anti-alias filter|a record in kN|Two noise-free records give back"
 slow+="|parameters correlated with one not identifiable|a gain held by its bounds|a logger CSV with BOM|A noise-free record gives back every true"
-slow+="|identify --threads 2 writes the same JSON|Over 20 noisy records"
+slow+="|identify --threads 2 and the default write the same JSON|Over 20 noisy records"
 # Five extreme scenes held within roundoff of a switching surface, each with its denser run and
 # its CVODE references (1.3 s plain): the stiff substeps' code runs here in the other stiff tests.
 slow+="|A surface held within roundoff of zero by a heavily damped motion is crossed"

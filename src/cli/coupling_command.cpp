@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "cli/commands.h"
+#include "cli/default_threads.h"
 #include "millkit/io/atomic_file.h"
 #include "millkit/io/input_error.h"
 #include "millkit/io/output_files.h"
@@ -22,7 +23,7 @@ struct CouplingArgs {
   std::string out;
   std::string curve;
   std::string plot;
-  int threads = 1;
+  int threads = DefaultThreads();
 };
 
 void RunCoupling(const CouplingArgs& args) {
@@ -74,7 +75,11 @@ void AddCouplingCommand(CLI::App& app) {
   command->add_option("--out", args->out, "Result JSON (written atomically)")->required();
   command->add_option("--curve", args->curve, "Kd-vs-variable curve around the optimum, CSV");
   command->add_option("--plot", args->plot, "The same curve as SVG");
-  command->add_option("--threads", args->threads, "Worker threads for the curve (default 1)");
+  command
+      ->add_option("--threads", args->threads,
+                   "Worker threads for the curve (1 ... 256; default: the cores this process may "
+                   "use)")
+      ->default_str(std::to_string(DefaultThreads()));
   command->callback([args] { RunCoupling(*args); });
 }
 

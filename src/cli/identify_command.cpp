@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "cli/default_threads.h"
 #include "millkit/driveline/scene.h"
 #include "millkit/identify/campaign.h"
 #include "millkit/identify/fit.h"
@@ -48,7 +49,7 @@ struct IdentifyArgs {
   std::string plot;
   std::string trace;
   std::string time_column;
-  int threads = 1;
+  int threads = DefaultThreads();
   bool quiet = false;
 };
 
@@ -437,10 +438,13 @@ void AddIdentifyCommand(CLI::App& app) {
                       "With --campaign: the part files of every shard 1/N ... N/N; writes the "
                       "table, --trend and --plot of the whole campaign, as one run would");
   command->add_option("--trace", args->trace, "CSV of measured, fitted and residual per channel");
-  command->add_option("--threads", args->threads,
-                      "Worker threads of the search (scan, starts, hops, probes; default 1, "
-                      "1 ... 256); with --campaign, fits run at once (each on one thread). The "
-                      "result is the same for any count");
+  command
+      ->add_option("--threads", args->threads,
+                   "Worker threads of the search (scan, starts, hops, probes; 1 ... 256; "
+                   "default: the cores this process may use, shared among the MPI ranks on "
+                   "the node); with --campaign, fits run at once (each on one thread). The "
+                   "result is the same for any count")
+      ->default_str(std::to_string(DefaultThreads()));
   command->add_flag("--quiet", args->quiet, "No progress line on stderr");
   command->callback([args] { RunIdentify(*args); });
 }

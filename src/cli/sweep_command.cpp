@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "cli/commands.h"
+#include "cli/default_threads.h"
 #include "millkit/io/atomic_file.h"
 #include "millkit/io/input_error.h"
 #include "millkit/io/output_files.h"
@@ -25,7 +26,7 @@ struct SweepArgs {
   std::string config;
   std::string out;
   std::string plot;
-  int threads = 1;
+  int threads = DefaultThreads();
   bool quiet = false;
 };
 
@@ -91,7 +92,11 @@ void AddSweepCommand(CLI::App& app) {
   command->add_option("--out", args->out, "Cases CSV, one row per case (written atomically)")
       ->required();
   command->add_option("--plot", args->plot, "SVG of Kd against each swept parameter");
-  command->add_option("--threads", args->threads, "Worker threads (per MPI rank; default 1)");
+  command
+      ->add_option("--threads", args->threads,
+                   "Worker threads per MPI rank (1 ... 256; default: the cores this process may "
+                   "use, shared among the MPI ranks on the node)")
+      ->default_str(std::to_string(DefaultThreads()));
   command->add_flag("--quiet", args->quiet, "No progress line on stderr");
   command->callback([args] { RunSweep(*args); });
 }

@@ -1,6 +1,12 @@
-// The program itself: --version, and a subcommand is required.
-#include <catch2/catch.hpp>
+// The program itself: --version, a subcommand is required, the --threads default.
+#include <sched.h>
 
+#include <algorithm>
+#include <catch2/catch.hpp>
+#include <cstdlib>
+#include <string>
+
+#include "cli/default_threads.h"
 #include "support/run_cli.h"
 
 using Catch::Matchers::Contains;
@@ -39,5 +45,31 @@ TEST_CASE("an option the library refuses is named by its flag, not by the librar
     CHECK(run.exit_code == 2);
     CHECK_THAT(run.stderr_text, Contains(c.flag));
     CHECK_THAT(run.stderr_text, !Contains("Options::"));
+  }
+}
+
+TEST_CASE(
+    "the default of --threads is the cores the process may use shared among the node's ranks") {
+  cpu_set_t mask;
+  CPU_ZERO(&mask);
+  REQUIRE(::sched_getaffinity(0, sizeof(mask), &mask) == 0);
+  const int cores = CPU_COUNT(&mask);
+  ::unsetenv("OMPI_COMM_WORLD_LOCAL_SIZE");
+  ::unsetenv("MPI_LOCALNRANKS");
+  CHECK(millkit::cli::DefaultThreads() == std::min(cores, 256));
+  // Two ranks of a job on this node share its cores; more ranks than cores get one each.
+  ::setenv("OMPI_COMM_WORLD_LOCAL_SIZE", "2", 1);
+  CHECK(millkit::cli::DefaultThreads() == std::clamp(cores / 2, 1, 256));
+  ::unsetenv("OMPI_COMM_WORLD_LOCAL_SIZE");
+  ::setenv("MPI_LOCALNRANKS", "100000", 1);
+  CHECK(millkit::cli::DefaultThreads() == 1);
+  ::unsetenv("MPI_LOCALNRANKS");
+  // Every command that runs work in parallel says its default in --help.
+  const std::string shown = "--threads INT=" + std::to_string(std::min(cores, 256)) + " ";
+  for (const std::string command : {"identify --help", "sweep --help", "coupling --help"}) {
+    const auto help = RunMillkit(command);
+    INFO(command << "\n" << help.stdout_text);
+    CHECK(help.exit_code == 0);
+    CHECK_THAT(help.stdout_text, Contains(shown));
   }
 }

@@ -61,16 +61,20 @@ TEST_CASE("parallel fit: random lines give the same result on 1, 2 and 3 threads
   }
 }
 
-TEST_CASE("identify --threads 2 writes the same JSON as one thread, and --threads 0 exits 2") {
+TEST_CASE(
+    "identify --threads 2 and the default write the same JSON as one thread, and --threads 0 "
+    "exits 2") {
   using namespace millkit::testing;
   ScratchDir dir;
   const std::string common =
       "identify '" + SourcePath("datasets/scenes/mill5_bite.toml") + "' --data '" +
       SourcePath("datasets/records/mill5_two_spindles.csv") + "' --config '" +
       SourcePath("datasets/records/mill5_two_spindles.fit.toml") + "' --quiet --out ";
-  const auto one = RunMillkit(common + "'" + (dir / "one.json").string() + "'");
+  const auto one = RunMillkit(common + "'" + (dir / "one.json").string() + "' --threads 1");
   const auto two = RunMillkit(common + "'" + (dir / "two.json").string() + "' --threads 2");
+  const auto cores = RunMillkit(common + "'" + (dir / "cores.json").string() + "'");
   REQUIRE(one.exit_code == two.exit_code);
+  REQUIRE(one.exit_code == cores.exit_code);
   std::string a = ReadText(dir / "one.json"), b = ReadText(dir / "two.json");
   // The wall time is the one line that may differ.
   const auto drop_wall = [](std::string text) {
@@ -79,6 +83,7 @@ TEST_CASE("identify --threads 2 writes the same JSON as one thread, and --thread
     return text;
   };
   CHECK(drop_wall(a) == drop_wall(b));
+  CHECK(drop_wall(a) == drop_wall(ReadText(dir / "cores.json")));
   const auto bad = RunMillkit(common + "'" + (dir / "bad.json").string() + "' --threads 0");
   CHECK(bad.exit_code == 2);
   CHECK_THAT(bad.stderr_text, Catch::Matchers::Contains("--threads"));
