@@ -21,6 +21,10 @@
 //     task: one Levenberg–Marquardt fit of the whole record, no scan, no continuation, none of
 //     the search's checks), median wall of --local-repeats, with the ratios to SciPy's wall and
 //     the two fits' largest difference in MillKit's standard errors.
+//  4. Threads: the default search on 1 and --threads T workers (2), median wall of
+//     --local-repeats each, on the first noisy record and on the bundled measured record with its
+//     config (the README command's fit); every value, standard error, the cost and the verdict
+//     must be the same to the bit (a difference is a bug: non-zero exit).
 // Exits non-zero when a fit from the truth fails to converge (a bug, not a slowness).
 #include <glog/logging.h>
 #include <unistd.h>
@@ -40,6 +44,7 @@
 #include "millkit/driveline/scene_parameter.h"
 #include "millkit/identify/fit.h"
 #include "millkit/identify/fit_config.h"
+#include "millkit/identify/oscillogram.h"
 #include "millkit/identify/record_generator.h"
 #include "millkit/io/atomic_file.h"
 
@@ -142,6 +147,7 @@ int main(int argc, char** argv) {
   int seeds = 100;
   int random_starts = 100;
   int local_repeats = 11;
+  int threads = 2;
   bool step_stop = true;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
@@ -153,10 +159,12 @@ int main(int argc, char** argv) {
       random_starts = std::atoi(argv[++i]);
     } else if (flag == "--local-repeats" && i + 1 < argc) {
       local_repeats = std::max(1, std::atoi(argv[++i]));
+    } else if (flag == "--threads" && i + 1 < argc) {
+      threads = std::clamp(std::atoi(argv[++i]), 2, 256);
     } else {
       std::fprintf(stderr,
                    "usage: %s [--seeds N (100)] [--starts N (100)] [--local-repeats N (11)] "
-                   "[--no-step-stop]\n",
+                   "[--threads T (2)] [--no-step-stop]\n",
                    argv[0]);
       return 2;
     }
@@ -358,6 +366,56 @@ int main(int argc, char** argv) {
       local.summary.simulations, first_search.summary.wall_time_s, apart(search_values));
   std::fflush(stdout);
   if (!local.summary.success) status = 1;
+
+  // The default search on 1 and `threads` workers: the same fit, in less wall time.
+  std::printf(
+      "\nThe default search on 1 and %d threads (median wall of %d each; the same values, "
+      "standard errors, cost and verdict to the bit):\n\n| record | runs | 1 thread s | %d threads "
+      "s | speed-up | the same |\n|---|---|---|---|---|---|\n",
+      threads, local_repeats, threads);
+  const auto on_threads = [&](const char* label, const driveline::Scene& fit_scene,
+                              const Oscillogram& record, const FitConfig& config) {
+    FitResult results[2];
+    double medians[2];
+    for (int k = 0; k < 2; ++k) {
+      FitOptions options;
+      options.threads = k == 0 ? 1 : threads;
+      std::vector<double> fit_walls;
+      for (int repeat = 0; repeat < local_repeats; ++repeat) {
+        const auto start = std::chrono::steady_clock::now();
+        results[k] = Fit(fit_scene, record, config, options);
+        fit_walls.push_back(Seconds(start));
+      }
+      std::sort(fit_walls.begin(), fit_walls.end());
+      medians[k] = fit_walls[fit_walls.size() / 2];
+    }
+    bool same = results[0].summary.cost == results[1].summary.cost &&
+                results[0].summary.verdict == results[1].summary.verdict &&
+                results[0].parameters.size() == results[1].parameters.size();
+    for (size_t i = 0; same && i < results[0].parameters.size(); ++i) {
+      same = results[0].parameters[i].value == results[1].parameters[i].value &&
+             results[0].parameters[i].standard_error == results[1].parameters[i].standard_error;
+    }
+    if (!same) status = 1;
+    std::printf("| %s | %ld | %.3f | %.3f | %.2f | %s |\n", label, results[0].summary.simulations,
+                medians[0], medians[1], medians[0] / medians[1], same ? "yes" : "NO");
+    std::fflush(stdout);
+  };
+  {
+    driveline::Scene fit_scene = setup.nominal;
+    const FitConfig config = Config(first_noisy, &fit_scene);
+    on_threads("first noisy record (no recorder filter)", fit_scene, first_noisy, config);
+  }
+  {
+    const Oscillogram measured =
+        LoadOscillogram(kSource + "/datasets/records/mill5_two_spindles.csv");
+    driveline::Scene fit_scene = setup.nominal;
+    FitConfig config = LoadFitConfig(kSource + "/datasets/records/mill5_two_spindles.fit.toml",
+                                     measured, fit_scene);
+    ApplySetValues(config, &fit_scene);
+    on_threads("bundled measured record, its config (the README command)", fit_scene, measured,
+               config);
+  }
 
   // SciPy on the first noisy record.
   // This process's own directory (two runs at once do not share or remove each other's).
