@@ -60,6 +60,7 @@ void FitOptions::Validate() const {
   require(profile_relax_reach >= profile_step, "profile_relax_reach: must be >= profile_step");
   require(curved_valley_ratio >= 0.0, "curved_valley_ratio: must be >= 0");
   require(curved_valley_iterations >= 1, "curved_valley_iterations: must be >= 1");
+  require(bound_walk_se >= 0.0 && bound_walk_se <= 16.0, "bound_walk_se: must be in [0, 16]");
   require(open_gap_points >= 0 && open_gap_points <= 20, "open_gap_points: must be in [0, 20]");
   require(gap_profile_points >= 0 && gap_profile_points <= 64,
           "gap_profile_points: must be in [0, 64]");

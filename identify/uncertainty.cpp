@@ -449,10 +449,20 @@ std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
   }
   // A parameter at a bound: the minimum is the bound's, not the misfit's, and its linearisation
   // says nothing of the inside. Its profile is followed inward, held at 1/16 … 1/2 of its range.
+  // So is one within bound_walk_se standard errors of a bound: its interval reaches past the
+  // bound, whose side the profile check cannot probe, and Levenberg–Marquardt, slow where u
+  // flattens against a bound, may have stopped short of it (random line 9661 with a fast
+  // recorder low-pass: a damping 1.4e-5 of its range above its lower bound, its error 0.2 of the
+  // range; the truth's valley at half the range, χ² 21 lower, behind a wall the followed
+  // profile's first point never left).
   const size_t curved_walks = held.size();
   for (int i = 0; i < p; ++i) {
-    const bool low = u[i] <= kAtBound;
-    if (!low && u[i] < 1.0 - kAtBound) continue;
+    const double variance = covariance(i, i);
+    const double near = variance > 0.0 && std::isfinite(variance)
+                            ? std::max(kAtBound, options.bound_walk_se * std::sqrt(variance))
+                            : kAtBound;
+    const bool low = u[i] <= near;
+    if (!low && u[i] < 1.0 - near) continue;
     for (double reach = kBoundWalkFirst; reach <= 0.5; reach *= 2.0) {
       std::vector<double> start(u);
       start[i] = low ? reach : 1.0 - reach;

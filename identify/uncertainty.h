@@ -63,14 +63,15 @@ std::vector<std::vector<double>> GapKicks(const FitModel& model, const std::vect
 // (cost `cost`), the others refitted (curved_valley_iterations of Levenberg–Marquardt, on
 // options.threads workers). Returns the held points whose χ² is more than 1 below the
 // minimum's, lowest first: a lower valley along a curved one, which the starts and the hops
-// missed. A parameter at a bound (within kAtBound in unit coordinates) has its profile followed
-// inward: held at 1/16, 1/8, 1/4 and 1/2 of its range from the bound, the others refitted the
-// same way; those held fits go to `bound_walks` (slot, point, cost) as well. A gap the record
-// hardly depends on (it never closes at u) is held just below the edge of its plateau, where it
-// starts to close (FitOptions::open_gap_points), the others refitted the same way. Every fitted
-// gap is held across its range, at (k + ½)/gap_profile_points in unit coordinates except within
-// profile_step standard errors of u, the others refitted (profile_iterations each): a second
-// valley behind a wall; these held fits go to `gap_points`.
+// missed. A parameter at a bound (within kAtBound in unit coordinates, or within
+// FitOptions::bound_walk_se of its standard errors there) has its profile followed inward: held at
+// 1/16, 1/8, 1/4 and 1/2 of its range from the bound, the others refitted the same way; those held
+// fits go to `bound_walks` (slot, point, cost) as well. A gap the record hardly depends on (it
+// never closes at u) is held just below the edge of its plateau, where it starts to close
+// (FitOptions::open_gap_points), the others refitted the same way. Every fitted gap is held across
+// its range, at (k + ½)/gap_profile_points in unit coordinates except within profile_step standard
+// errors of u, the others refitted (profile_iterations each): a second valley behind a wall; these
+// held fits go to `gap_points`.
 std::vector<std::vector<double>> CurvedValleyPoints(const FitModel& model,
                                                     const std::vector<double>& u, double cost,
                                                     const FitOptions& options,

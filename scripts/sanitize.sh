@@ -44,6 +44,9 @@ slow+="|A second noisy record shrinks|verdict misfit|identify reports a gap the 
 slow+="|Modelling the recorder's anti-alias filter|a record in kN|Two noise-free records give back"
 slow+="|parameters correlated with one not identifiable|a gain held by its bounds|a logger CSV with BOM|A noise-free record gives back every true"
 slow+="|identify --threads 2 and the default write the same JSON|Over 20 noisy records"
+# Random line 9661's two fits (5 s each in the plain build, the second search's 12 starts): the
+# bound walk runs here in "A parameter at its bound has its profile followed inward".
+slow+="|a parameter within 2 standard errors of a bound is walked inward"
 # Five extreme scenes held within roundoff of a switching surface, each with its denser run and
 # its CVODE references (1.3 s plain): the stiff substeps' code runs here in the other stiff tests.
 slow+="|A surface held within roundoff of zero by a heavily damped motion is crossed"

@@ -159,6 +159,10 @@ struct FitOptions {
   // reaches counts as one no start reached. 0: neither is followed.
   double curved_valley_ratio = 100.0;
   int curved_valley_iterations = 20;
+  // With the curved valleys: a parameter within bound_walk_se standard errors of a bound (in unit
+  // coordinates) is walked inward from it as one at the bound is: its interval reaches past the
+  // bound, and the fit may have stopped short of it. 0: only a parameter at its bound.
+  double bound_walk_se = 2.0;
   // With the curved valleys: a gap that never closes at the best minimum (its backlash fails the
   // identifiability test above and the cost is the same at every larger gap) may sit where
   // another parameter makes up for it, while the truth's valley, where the gap closes briefly,
