@@ -159,20 +159,21 @@ bool Says(const FitResult& fit, const std::string& text) {
                      [&](const std::string& w) { return w.find(text) != std::string::npos; });
 }
 
-// A random line fitted twice: with one check switched off by `switch_off`, and with the
-// defaults; and how far the first is from the truth.
+// A random line fitted twice: with one check switched off by `switch_off`, and with `with` (the
+// defaults unless given); and how far the first is from the truth.
 struct WithAndWithout {
   FitResult without;
   FitResult with;
   double worst_without = 0.0;  // in its standard errors
   std::string which_without;
 };
-WithAndWithout FitWithAndWithout(const RandomLineCase& c, void (*switch_off)(FitOptions*)) {
-  FitOptions without;
+WithAndWithout FitWithAndWithout(const RandomLineCase& c, void (*switch_off)(FitOptions*),
+                                 const FitOptions& with = FitOptions{}) {
+  FitOptions without = with;
   switch_off(&without);
   WithAndWithout fits;
   fits.without = Fit(c.prior, c.record, c.config, without);
-  fits.with = Fit(c.prior, c.record, c.config, FitOptions{});
+  fits.with = Fit(c.prior, c.record, c.config, with);
   REQUIRE(fits.without.summary.success);
   REQUIRE(fits.with.summary.success);
   fits.worst_without = WorstZ(fits.without, c.truth, &fits.which_without);
@@ -362,12 +363,8 @@ TEST_CASE("verdict ok: a profile probe below the minimum is gone on from") {
   const RandomLineCase c = MakeRandomLineCase(384, RandomLineVariant::kNoPull);
   FitOptions gone_on;
   gone_on.bound_walk_se = 0.0;
-  FitOptions stopped = gone_on;
-  stopped.profile_restarts = 0;
-  WithAndWithout fits;
-  fits.without = Fit(c.prior, c.record, c.config, stopped);
-  fits.with = Fit(c.prior, c.record, c.config, gone_on);
-  fits.worst_without = WorstZ(fits.without, c.truth, &fits.which_without);
+  const auto fits = FitWithAndWithout(
+      c, [](FitOptions* o) { o->profile_restarts = 0; }, gone_on);
   INFO("without restarts: " << fits.without.summary.verdict << ", cost "
                             << fits.without.summary.cost << ", worst " << fits.which_without
                             << " at " << fits.worst_without << " SE");
