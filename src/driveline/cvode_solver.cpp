@@ -125,7 +125,7 @@ class CvodeIntegrator final : public ModeIntegrator {
     try {
       y_ = SundialsVector(N_VNew_Serial(nx_, context_.get()));
       SundialsVector atol(N_VNew_Serial(nx_, context_.get()));
-      State() = z0.head(nx_);
+      CvodeState() = z0.head(nx_);
       Eigen::Map<Eigen::VectorXd>(N_VGetArrayPointer(atol.get()), nx_) =
           options_.atol.value_or(options_.rtol) * state_scale_;
       jacobian_ = SundialsMatrix(SUNDenseMatrix(nx_, nx_, context_.get()));
@@ -195,7 +195,7 @@ class CvodeIntegrator final : public ModeIntegrator {
       if (flag < 0) {
         return Fail("CVode failed at t = " + std::to_string(reached) + ": " + FlagName(flag), end);
       }
-      if (flag != CV_TSTOP_RETURN && !State().allFinite()) {
+      if (flag != CV_TSTOP_RETURN && !CvodeState().allFinite()) {
         return Fail("state became non-finite at t = " + std::to_string(reached), end);
       }
     } catch (const std::exception& e) {
@@ -242,11 +242,12 @@ class CvodeIntegrator final : public ModeIntegrator {
   }
 
  private:
-  Eigen::Map<Eigen::VectorXd> State() { return {N_VGetArrayPointer(y_.get()), nx_}; }
+  // The state x as CVODE holds it (named apart from ModeIntegrator::State, the observer's copy).
+  Eigen::Map<Eigen::VectorXd> CvodeState() { return {N_VGetArrayPointer(y_.get()), nx_}; }
   // [x; w; w'] at time t.
   Eigen::VectorXd Augmented(double t) {
     Eigen::VectorXd z(model_.augmented_size());
-    z << State(), problem_.Forcing(t), problem_.slope;
+    z << CvodeState(), problem_.Forcing(t), problem_.slope;
     return z;
   }
   void Fail(const std::string& message, LegEnd* end) {
