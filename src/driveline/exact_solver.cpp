@@ -18,9 +18,12 @@
 //    such step into more pieces.
 // Events: a watched surface g = r·z changes side within a step. Each step first bounds every
 // watched surface from its values at the two ends: the chord is off g by at most max|g''| τ²/8,
-// |g''| = |r M v| <= |r| |M| 1 · e^{‖M‖∞ τ} ‖v(t)‖∞. Those it does not clear are bounded from
-// their values and slopes: with u = s/τ, the cubic Hermite interpolant differs from g by at most
-// max|g⁗| τ⁴ u²(1 − u)²/4!, |g⁗| <= |r| |M|³ 1 · e^{‖M‖∞ τ} ‖v(t)‖∞. A surface that the motion
+// |g''| = |r M v| <= |r| |M| 1 · G ‖v(t)‖∞, G = e^{‖M‖∞ τ}, or for ‖M‖∞ h above 2 the sharper
+// sup_{s <= h} ‖exp(M s)‖∞ (SupExpNorm: near 1 for a damped motion, where e^{‖M‖∞ h} is 10^5).
+// Those it does not clear are bounded from their values and slopes: with u = s/τ, the cubic
+// Hermite interpolant differs from g by at most max|g⁗| τ⁴ u²(1 − u)²/4!,
+// |g⁗| <= |r| |M|³ 1 · G ‖v(t)‖∞; then by the chord again from the acceleration itself,
+// |g''| <= ‖r‖₁ G ‖M v(t)‖∞, small once a damped fast mode has decayed. A surface that the motion
 // cannot reach (no path in M's graph from a moving component to the surface's) stays put.
 // Only a surface whose bound reaches below zero is looked at exactly: on the step's Taylor series
 // it is a polynomial in s, searched left to right with the same bound on halved intervals, and its
@@ -106,6 +109,12 @@ constexpr double kMaxTaylorPieces = 16.0;
 constexpr double kSearchPieces = 4.0;
 // The ladder's finest level, where sup ‖exp(m s)‖∞ <= e^{‖m‖∞ σ} is used as it is.
 constexpr double kGrowthBaseNorm = 0.125;
+// Above this ‖m‖∞ h (and up to kMaxTaylorPieces) a phase set's growth over a step, which bounds
+// the surfaces' motion, is sup ‖exp(m s)‖∞ from the propagators over h / 2^j (SupExpNorm) instead
+// of e^{‖m‖∞ h}: a damped motion's propagator stays near 1 where e^{‖m‖∞ h} reaches 10^5, every
+// surface then failed the bound, and every step was expanded and searched (fast-lowpass random
+// line 10163: 3 ms a run against 0.2 ms).
+constexpr double kTightGrowthNorm = 2.0;
 // Cached phase data beyond this many bytes is dropped and rebuilt on need: a run that visits very
 // many phase sets keeps a bounded memory.
 constexpr size_t kMaxCacheBytes = size_t{64} << 20;
@@ -258,6 +267,48 @@ inline double QuickMinimum(double a0, double b0, double a1, double b1, double c)
   const double lower = a0 < a1 ? a0 : a1;
   const double falling = -b0 > 0.0 ? -b0 : 0.0, rising = b1 > 0.0 ? b1 : 0.0;
   return lower - (4.0 / 27.0) * (falling + rising) - 0.0625 * c;
+}
+
+// An upper bound of sup_{0 <= s <= h} ‖exp(m s)‖∞. Over s <= σ_p = h / 2^p, ‖m‖∞ σ_p <= 1:
+// e^{‖m‖∞ σ_q} at σ_q = σ_p / 2^(q-p), ‖m‖∞ σ_q <= kGrowthBaseNorm, times max(1, ‖exp(m σ_j)‖∞)
+// for j = q … p + 1 (any s <= σ_{j-1} is σ_j plus a shorter time); then over [k σ_p, (k + 1) σ_p]
+// that times ‖exp(m σ_p)^k‖∞, the largest over k < 2^p. The propagators come from exp(m σ_q)'s
+// series by squaring and products, each norm raised by their rounding. A damped motion's bound
+// stays near 1 where e^{‖m‖∞ h} is 10^5.
+double SupExpNorm(const Eigen::MatrixXd& m, double norm_inf, double h) {
+  const double theta = norm_inf * h;
+  const int p = std::max(0, static_cast<int>(std::ceil(std::log2(theta))));
+  const int q = std::max(p, static_cast<int>(std::ceil(std::log2(theta / kGrowthBaseNorm))));
+  const double theta_q = std::ldexp(theta, -q);
+  const Eigen::Index n = m.rows();
+  const Eigen::MatrixXd a = std::ldexp(h, -q) * m;
+  Eigen::MatrixXd s = Eigen::MatrixXd::Identity(n, n), term = s, next(n, n);
+  double rest = theta_q;  // bound of the next term's ‖·‖∞
+  for (int k = 1; k <= kMaxTaylorTerms && rest > 0x1p-60; ++k) {
+    numerics::Multiply(term, a, &next);
+    term = next / k;
+    s += term;
+    rest *= theta_q / (k + 1);
+  }
+  // Each product's rounding, relative, and the series' rest (carried through the squarings).
+  const double rounding = 1.0 + 8.0 * static_cast<double>(n) * kEps;
+  auto norm = [&](const Eigen::MatrixXd& x) {
+    return x.cwiseAbs().rowwise().sum().maxCoeff() * rounding + 2.0 * rest;
+  };
+  double inner = std::exp(theta_q);
+  for (int j = q; j > p; --j) {
+    inner *= std::max(1.0, norm(s));
+    numerics::Multiply(s, s, &next);
+    s = next;
+  }
+  double outer = 1.0;
+  Eigen::MatrixXd power = s;
+  for (long k = 1; k < (long{1} << p); ++k) {
+    outer = std::max(outer, norm(power));
+    numerics::Multiply(power, s, &next);
+    power = next;
+  }
+  return inner * outer;
 }
 
 // Everything the solver needs of one phase set, in scaled coordinates. Vectors are padded to a
@@ -679,6 +730,7 @@ class ExactIntegrator final : public ModeIntegrator {
   Eigen::MatrixXd split_c_, split_u_, split_next_, split_s_rows_, split_phi_rows_, split_product_;
   std::vector<double> split_weights_;
   std::vector<double> stiff_y_, stiff_v_, stiff_g_, stiff_a_, stiff_out_;
+  std::vector<double> accel_;  // m v at a Taylor or cached step's start (AdvanceLeg)
   std::vector<int> stiff_candidates_;
   std::vector<double> size_scratch_, terms_scratch_;
   std::vector<double> stiff_tolerance_;
@@ -723,8 +775,8 @@ MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
     data.lowpass_apart = data.lowpass_apart && (model_.surfaces().col(y).array() == 0.0).all();
   }
   data.series_norm = data.norm_inf;
+  Eigen::MatrixXd core = m.topLeftCorner(active_, active_);  // the series' matrix
   if (data.lowpass_apart) {
-    Eigen::MatrixXd core = m.topLeftCorner(active_, active_);
     data.lowpass_rows.assign(lowpass_.size() * stride_, 0.0);
     for (size_t r = 0; r < lowpass_.size(); ++r) {
       const int y = lowpass_[r];
@@ -739,6 +791,9 @@ MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
     // The rows beyond the active block (the input slopes') are zero.
   }
   data.growth = std::exp(std::min(data.series_norm * h_, 700.0));
+  if (data.series_norm * h_ > kTightGrowthNorm && data.series_norm * h_ <= kMaxTaylorPieces) {
+    data.growth = std::min(data.growth, SupExpNorm(core, data.series_norm, h_));
+  }
   data.watched = model_.Watched(phases);
   const int count = static_cast<int>(data.watched.size());
   const Eigen::MatrixXd torque = model_.LinkTorqueRows(phases, system);
@@ -1315,6 +1370,7 @@ bool ExactIntegrator::StiffAdvance(PhaseData* data, double t, double tau, const 
         kStallUlps * kEps * std::max(std::abs(t + done) + sigma, h_) / series_.dt;
     int piece = 0;
     double s = 0.0;
+    ++summary.searched_steps;
     if (FindEvent(*data, stiff_candidates_, stiff_tolerance_, resolution_s, &piece, &s, crossed)) {
       *tau_event = std::min(done + (piece + s) * series_.dt, tau);
       EvaluateSeries(piece, s, y1, v1);
@@ -1544,7 +1600,7 @@ std::string ExactIntegrator::Start(const Eigen::VectorXd& z0, const Phases& phas
   v_.assign(stride_, 0.0);
   y1_.assign(stride_, 0.0);
   v1_.assign(stride_, 0.0);
-  for (auto* vector : {&g0_, &dg0_, &end_, &dg1_, &out_}) vector->assign(max_ld, 0.0);
+  for (auto* vector : {&g0_, &dg0_, &end_, &dg1_, &out_, &accel_}) vector->assign(max_ld, 0.0);
   for (int i = 0; i < n_; ++i) y_[i] = z0[i] / scale_[i];
   unscaled_.resize(n_);
   moving_scratch_.assign(words_, 0);
@@ -1607,6 +1663,7 @@ MILLKIT_HOT void ExactIntegrator::AdvanceLeg(double t, const Leg& leg, LegEnd* l
       ExpandStep(*data, y.data(), v.data(), tau, y1.data(), v1.data());
       expanded = true;
       growth = std::exp(std::min(data->series_norm * tau, 700.0));
+      if (tau <= h_) growth = std::min(growth, data->growth);  // (sup over s <= h)
     }
     ++summary_->steps;
     // Non-finite states show in v first (y1 = y + Φ v).
@@ -1640,6 +1697,7 @@ MILLKIT_HOT void ExactIntegrator::AdvanceLeg(double t, const Leg& leg, LegEnd* l
       data->rows.Apply(v1.data(), dg1.data());
       Tolerances(*data, y.data(), y1.data(), &tolerance_);
       bool moving_known = false;
+      double accel_chord = -1.0;  // ‖R_w‖₁ times it bounds the chord's error (on first need)
       tolerance_.resize(count);
       for (int w = 0; w < count; ++w) {
         if (slack_[w] >= 0.0) continue;
@@ -1651,6 +1709,14 @@ MILLKIT_HOT void ExactIntegrator::AdvanceLeg(double t, const Leg& leg, LegEnd* l
         const double a0 = g0[w], a1 = end[w], b0 = dg0[w] * tau, b1 = dg1[w] * tau;
         const double c = data->bound3[w] * c_factor;
         if (QuickMinimum(a0, b0, a1, b1, c) >= -tolerance_[w]) continue;
+        // The chord bound again with the acceleration itself: |g''(s)| = |R_w exp(m s) m v| <=
+        // ‖R_w‖₁ growth ‖m v‖∞, far below bound2 growth ‖v‖∞ once a damped fast mode has decayed.
+        if (accel_chord < 0.0) {
+          (data->lowpass_apart ? data->m_series : data->m_active).Apply(v.data(), accel_.data());
+          accel_chord =
+              growth * numerics::MaxAbsPadded(accel_.data(), active_stride_) * tau * tau * 0.125;
+        }
+        if (std::min(a0, a1) - data->row_norm[w] * accel_chord + tolerance_[w] >= 0.0) continue;
         if (!moving_known) {
           std::fill(moving_scratch_.begin(), moving_scratch_.end(), 0);
           for (int i = 0; i < n_; ++i) {
@@ -1678,6 +1744,7 @@ MILLKIT_HOT void ExactIntegrator::AdvanceLeg(double t, const Leg& leg, LegEnd* l
       const double resolution_s = kStallUlps * kEps * std::max(std::abs(t) + tau, h_) / series_.dt;
       int piece = 0;
       double s = 0.0;
+      ++summary_->searched_steps;
       if (FindEvent(*data, candidates_, tolerance_, resolution_s, &piece, &s, &crossed)) {
         tau_event = (piece + s) * series_.dt;
         EvaluateSeries(piece, s, y1.data(), v1.data());

@@ -97,6 +97,9 @@ struct SimulationSummary {
   long rhs_evaluations = 0;
   long jacobian_evaluations = 0;
   long phase_sets = 0;  // distinct phase sets visited (exact: propagators built)
+  // Exact: steps whose Taylor series was searched for a crossing because the bounds did not clear
+  // every watched surface (the costly ones); CVODE: 0.
+  long searched_steps = 0;
   double wall_time_s = 0.0;
   // What error_estimate is (BriefReport prints it with this name). Exact: "error estimate", the
   // step propagators' roundoff defects summed over the steps taken (a linear-growth bound),
