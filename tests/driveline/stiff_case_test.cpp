@@ -215,9 +215,9 @@ TEST_CASE("A coupling damped between mild and stiff searches few of its steps fo
   // Damping 3e3 and 7e3: |M| h 6 and 14, stepped on Taylor series (the stiff ladder takes over
   // above 16). Searched steps counted, not timed: a search expands the step in about |M| h pieces
   // and bisects each watched surface's polynomial. The surfaces' bound took the motion's growth
-  // over a step as e^{|M| h} (1.2e6 at 14), cleared none, and every step after the load was
-  // searched (0.43 ms a run against 0.04 at damping 1e4); now the growth is sup |exp(m s)| and the
-  // chord is bounded from the acceleration m v too, which a decayed fast mode leaves small.
+  // over a step as e^{|M| h} (at least 1.2e6 at 14), cleared none, and every step after the load
+  // was searched (0.43 ms a run against 0.04 at damping 1e4); now the growth is sup |exp(m s)|
+  // and the chord is bounded from the acceleration m v too, which a decayed mode leaves small.
   // Searched before: 128 of the 202 steps at 3e3, and at 7e3; now 4 and 10 (2 at damping 1e2).
   for (double damping : {3e3, 7e3}) {
     INFO("damping " << damping);
