@@ -86,7 +86,9 @@ void CheckOutputPaths(const std::vector<std::pair<std::string, std::string>>& ou
       throw InputError(Describe(option, path) + ": directory " + directory.string() +
                        " is not writable");
     }
-    const auto canonical = std::filesystem::weakly_canonical(target);
+    // Absolute first: weakly_canonical leaves a relative path whose first component does not
+    // exist as it is, so "fit.json" and "./fit.json" would differ until the file exists.
+    const auto canonical = std::filesystem::weakly_canonical(std::filesystem::absolute(target));
     for (size_t j = 0; j < resolved.size(); ++j) {
       if (!resolved[j].empty() && resolved[j] == canonical) {
         throw InputError("options " + outputs[j].first + " and " + option + " name the same file " +

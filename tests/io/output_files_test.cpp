@@ -78,6 +78,31 @@ TEST_CASE("output check: two outputs naming one file and a missing directory are
   CHECK_NOTHROW(CheckOutputPaths({{"--out", file}, {"--plot", ""}}, {}));
 }
 
+TEST_CASE("output check: one new file spelled two ways relative to the working directory") {
+  // "fit.json" and "./fit.json" before the file exists: both outputs would be written to one
+  // file, the second rename failing after the first had landed.
+  ScratchDir dir;
+  fs::create_directory(dir / "sub");
+  const fs::path before = fs::current_path();
+  fs::current_path(dir.path());
+  const auto check = [](const std::string& a, const std::string& b) {
+    try {
+      CheckOutputPaths({{"--out", a}, {"--trace", b}}, {});
+    } catch (const InputError& error) {
+      return std::string(error.what());
+    }
+    return std::string();
+  };
+  const std::string plain = check("fit.json", "./fit.json");
+  const std::string up = check("sub/../fit.json", "fit.json");
+  const std::string apart = check("fit.json", "sub/fit.json");
+  fs::current_path(before);
+  CHECK_THAT(plain, Contains("--out") && Contains("--trace") && Contains("same file"));
+  CHECK_THAT(up, Contains("same file"));
+  CHECK(apart.empty());
+  CHECK_FALSE(fs::exists(dir / "fit.json"));
+}
+
 TEST_CASE("an atomic write through a symlink replaces its target and keeps the link") {
   ScratchDir dir;
   WriteText(dir / "target.csv", "old\n");
