@@ -8,6 +8,7 @@
 
 #include <catch2/catch.hpp>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "millkit/io/atomic_file.h"
@@ -83,8 +84,15 @@ TEST_CASE("output check: one new file spelled two ways relative to the working d
   // file, the second rename failing after the first had landed.
   ScratchDir dir;
   fs::create_directory(dir / "sub");
-  const fs::path before = fs::current_path();
-  fs::current_path(dir.path());
+  // The working directory is the scratch directory for this test only, whatever it throws.
+  struct WorkingDirectory {
+    fs::path before = fs::current_path();
+    explicit WorkingDirectory(const fs::path& to) { fs::current_path(to); }
+    ~WorkingDirectory() { fs::current_path(before); }
+    WorkingDirectory(const WorkingDirectory&) = delete;
+    WorkingDirectory& operator=(const WorkingDirectory&) = delete;
+  };
+  std::optional<WorkingDirectory> inside(std::in_place, dir.path());
   const auto check = [](const std::string& a, const std::string& b) {
     try {
       CheckOutputPaths({{"--out", a}, {"--trace", b}}, {});
@@ -96,7 +104,7 @@ TEST_CASE("output check: one new file spelled two ways relative to the working d
   const std::string plain = check("fit.json", "./fit.json");
   const std::string up = check("sub/../fit.json", "fit.json");
   const std::string apart = check("fit.json", "sub/fit.json");
-  fs::current_path(before);
+  inside.reset();
   CHECK_THAT(plain, Contains("--out") && Contains("--trace") && Contains("same file"));
   CHECK_THAT(up, Contains("same file"));
   CHECK(apart.empty());
