@@ -34,12 +34,21 @@ std::string Describe(const std::string& option, const std::string& path) {
 }  // namespace
 
 std::filesystem::path ResolvedOutputPath(const std::filesystem::path& path) {
+  // Link by link, so that a link to a file not made yet is written through as well (the
+  // filesystem's canonical forms stop at a dangling link). A loop is left as it is.
+  constexpr int kMaxLinks = 40;  // Linux's own limit on links in one lookup
   std::error_code error;
-  if (std::filesystem::is_symlink(std::filesystem::symlink_status(path, error))) {
-    auto target = std::filesystem::weakly_canonical(path, error);
-    if (!error) return target;
+  std::filesystem::path current = path;
+  int links = 0;
+  for (; links < kMaxLinks; ++links) {
+    if (!std::filesystem::is_symlink(std::filesystem::symlink_status(current, error))) break;
+    const std::filesystem::path target = std::filesystem::read_symlink(current, error);
+    if (error) return path;
+    current = target.is_absolute() ? target : current.parent_path() / target;
   }
-  return path;
+  if (links == 0 || links == kMaxLinks) return path;
+  auto resolved = std::filesystem::weakly_canonical(std::filesystem::absolute(current), error);
+  return error ? path : resolved;
 }
 
 void CheckOutputPaths(const std::vector<std::pair<std::string, std::string>>& outputs,
@@ -88,7 +97,13 @@ void CheckOutputPaths(const std::vector<std::pair<std::string, std::string>>& ou
     }
     // Absolute first: weakly_canonical leaves a relative path whose first component does not
     // exist as it is, so "fit.json" and "./fit.json" would differ until the file exists.
-    const auto canonical = std::filesystem::weakly_canonical(std::filesystem::absolute(target));
+    std::error_code unresolved;
+    const auto canonical =
+        std::filesystem::weakly_canonical(std::filesystem::absolute(target), unresolved);
+    if (unresolved) {
+      throw InputError(Describe(option, path) + ": cannot be resolved (" + unresolved.message() +
+                       "); an output must be a new path or a regular file");
+    }
     for (size_t j = 0; j < resolved.size(); ++j) {
       if (!resolved[j].empty() && resolved[j] == canonical) {
         throw InputError("options " + outputs[j].first + " and " + option + " name the same file " +

@@ -121,6 +121,39 @@ TEST_CASE("an atomic write through a symlink replaces its target and keeps the l
   CHECK(NoTemporaries(dir.path()));
 }
 
+TEST_CASE("an atomic write through a link to a file not made yet makes it and keeps the link") {
+  ScratchDir dir;
+  fs::create_directory(dir / "runs");
+  // latest.csv -> runs/42.csv (not there yet), reached through a second link.
+  fs::create_symlink("runs/42.csv", dir / "latest.csv");
+  fs::create_symlink("latest.csv", dir / "view.csv");
+  CHECK_NOTHROW(CheckOutputPaths({{"--out", (dir / "view.csv").string()}}, {}));
+  // The two names of one new file are one output.
+  CHECK_THROWS_WITH(CheckOutputPaths({{"--out", (dir / "view.csv").string()},
+                                      {"--plot", (dir / "runs" / "42.csv").string()}},
+                                     {}),
+                    Contains("same file"));
+  WriteFileAtomically(dir / "view.csv", "new\n");
+  CHECK(fs::is_symlink(fs::symlink_status(dir / "view.csv")));
+  CHECK(fs::is_symlink(fs::symlink_status(dir / "latest.csv")));
+  CHECK(ReadText(dir / "runs" / "42.csv") == "new\n");
+  CHECK(NoTemporaries(dir.path()));
+  CHECK(NoTemporaries(dir / "runs"));
+}
+
+TEST_CASE("output check: a link into a missing directory and a loop of links are refused") {
+  ScratchDir dir;
+  fs::create_symlink("none/x.csv", dir / "lost.csv");
+  CHECK_THROWS_WITH(CheckOutputPaths({{"--out", (dir / "lost.csv").string()}}, {}),
+                    Contains("--out") && Contains("does not exist"));
+  fs::create_symlink("b.csv", dir / "a.csv");
+  fs::create_symlink("a.csv", dir / "b.csv");
+  CHECK_THROWS_AS(CheckOutputPaths({{"--out", (dir / "a.csv").string()}}, {}), InputError);
+  CHECK_THROWS_WITH(CheckOutputPaths({{"--out", (dir / "a.csv").string()}}, {}),
+                    Contains("--out") && Contains("cannot be resolved"));
+  CHECK(fs::is_symlink(fs::symlink_status(dir / "a.csv")));
+}
+
 TEST_CASE("an atomic writer refuses a FIFO and leaves it one") {
   ScratchDir dir;
   REQUIRE(::mkfifo((dir / "pipe").c_str(), 0600) == 0);
