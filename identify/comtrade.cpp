@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "millkit/io/input_error.h"
+#include "millkit/io/input_file.h"
 
 namespace millkit::identify {
 namespace {
@@ -36,6 +37,7 @@ std::vector<std::string> Fields(const std::string& line) {
 class CfgReader {
  public:
   explicit CfgReader(const std::filesystem::path& path) : path_(path.string()) {
+    CheckInputFile(path);
     std::ifstream in(path);
     if (!in) throw InputError(path_ + ": cannot open file");
     std::string line;
@@ -149,6 +151,7 @@ Oscillogram LoadComtrade(const std::filesystem::path& cfg_path) {
 
   std::filesystem::path dat_path = cfg_path;
   dat_path.replace_extension(cfg_path.extension() == ".CFG" ? ".DAT" : ".dat");
+  CheckInputFile(dat_path);
   std::ifstream dat(dat_path, std::ios::binary);
   if (!dat)
     throw InputError(dat_path.string() + ": cannot open the .dat file of " + cfg_path.string());

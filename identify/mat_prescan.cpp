@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "millkit/io/input_error.h"
+#include "millkit/io/input_file.h"
 
 namespace millkit::identify {
 namespace {
@@ -430,6 +431,7 @@ MatVersion CheckMatBytes(std::string_view bytes, const std::string& source) {
 }
 
 MatVersion CheckMatFile(const std::filesystem::path& path, const std::string& source) {
+  CheckInputFile(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(source + ": cannot open it");
   std::string bytes(kHeaderBytes, '\0');

@@ -29,6 +29,7 @@
 #include "millkit/identify/oscillogram.h"
 #include "millkit/io/atomic_file.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/input_file.h"
 #include "millkit/io/number_format.h"
 #include "millkit/io/output_files.h"
 #include "millkit/io/progress_line.h"
@@ -227,9 +228,7 @@ void RunCampaign(const IdentifyArgs& args) {
     std::vector<std::pair<std::string, std::string>> parts;
     parts.reserve(args.merge.size());
     for (const auto& path : args.merge) {
-      if (!std::filesystem::is_regular_file(path)) {
-        throw InputError("option --merge: '" + path + "' is not a file");
-      }
+      CheckInputFile(path, "option --merge: '" + path + "'");
       std::ifstream in(path, std::ios::binary);
       std::ostringstream text;
       text << in.rdbuf();

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "millkit/io/input_error.h"
+#include "millkit/io/input_file.h"
 
 namespace millkit {
 namespace {
@@ -297,6 +298,7 @@ CsvTable ParseCsv(const std::string& text, const std::string& source) {
 }
 
 CsvTable ReadCsv(const std::filesystem::path& path) {
+  CheckInputFile(path);
   std::ifstream in(path);
   if (!in) throw InputError(path.string() + ": cannot open file");
   std::stringstream buffer;
@@ -316,6 +318,7 @@ TextTable ParseTextCsv(const std::string& text, const std::string& source) {
 }
 
 TextTable ReadTextCsv(const std::filesystem::path& path) {
+  CheckInputFile(path);
   std::ifstream in(path);
   if (!in) throw InputError(path.string() + ": cannot open file");
   std::stringstream buffer;

@@ -1,15 +1,24 @@
 #include "io/toml_section.h"
 
 #include <cmath>
+#include <fstream>
+#include <sstream>
 
 #include "millkit/io/input_error.h"
+#include "millkit/io/input_file.h"
 
 namespace millkit {
 
 toml::table LoadTomlFile(const std::filesystem::path& path) {
-  if (!std::filesystem::exists(path)) throw InputError(path.string() + ": file not found");
+  CheckInputFile(path);
+  // Read here rather than by toml::parse_file, which needs a file it can seek: a pipe
+  // (millkit simulate <(...)) is read as a CSV input is.
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path.string() + ": cannot open file");
+  std::ostringstream text;
+  text << in.rdbuf();
   try {
-    return toml::parse_file(path.string());
+    return toml::parse(text.str(), path.string());
   } catch (const toml::parse_error& error) {
     const auto& where = error.source().begin;
     throw InputError(path.string() + ":" + std::to_string(where.line) + ":" +

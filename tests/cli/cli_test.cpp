@@ -1,10 +1,13 @@
 // The program itself: --version, a subcommand is required, the --threads default.
 #include <sched.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <catch2/catch.hpp>
 #include <cstdlib>
+#include <filesystem>
 #include <string>
+#include <vector>
 
 #include "cli/default_threads.h"
 #include "support/run_cli.h"
@@ -72,4 +75,43 @@ TEST_CASE(
     CHECK(help.exit_code == 0);
     CHECK_THAT(help.stdout_text, Contains(shown));
   }
+}
+
+TEST_CASE("an input that cannot be a file is named with exit 2 and a pipe is read") {
+  using millkit::testing::ScratchDir;
+  using millkit::testing::Shell;
+  using millkit::testing::SourcePath;
+  namespace fs = std::filesystem;
+  ScratchDir dir;
+  fs::create_directory(dir / "folder");
+  fs::create_symlink("b.toml", dir / "a.toml");
+  fs::create_symlink("a.toml", dir / "b.toml");
+  const std::string out = " --out '" + (dir / "out.csv").string() + "'";
+  struct Case {
+    std::string input, says;
+  };
+  for (const Case& c : {Case{(dir / "folder").string(), "is a directory"},
+                        Case{(dir / "a.toml").string(), "cannot be read"},
+                        Case{(dir / "none.toml").string(), "file not found"}}) {
+    // As a scene (TOML) and as a record (CSV).
+    for (const std::string& command :
+         std::vector<std::string>{"simulate '" + c.input + "'" + out,
+                                  "identify '" + SourcePath("datasets/scenes/mill5_bite.toml") +
+                                      "' --data '" + c.input + "'" + out}) {
+      const auto run = RunMillkit(command);
+      INFO(command << "\n" << run.stderr_text);
+      CHECK(run.exit_code == 2);
+      CHECK_THAT(run.stderr_text, Contains(c.input + ": " + c.says));
+      CHECK_FALSE(fs::exists(dir / "out.csv"));
+    }
+  }
+  // A scene through a pipe (a FIFO here; a shell's <(...) is one).
+  REQUIRE(::mkfifo((dir / "scene.toml").c_str(), 0600) == 0);
+  const int code =
+      Shell(dir, "cat '" + SourcePath("datasets/scenes/two_mass_step.toml") + "' > '" +
+                     (dir / "scene.toml").string() + "' & '" + MILLKIT_BINARY + "' simulate '" +
+                     (dir / "scene.toml").string() + "'" + out + "; status=$?; wait; exit $status");
+  INFO(millkit::testing::ReadText(dir / "stderr"));
+  CHECK(code == 0);
+  CHECK(fs::file_size(dir / "out.csv") > 0);
 }
