@@ -21,6 +21,7 @@
 #include "millkit/identify/oscillogram.h"
 #include "millkit/io/csv.h"
 #include "millkit/io/input_error.h"
+#include "millkit/io/input_file.h"
 #include "millkit/io/number_format.h"
 #include "millkit/io/svg_plot.h"
 #include "millkit/version.h"
@@ -122,9 +123,7 @@ FitOutcome RunOneFit(const driveline::Scene& scene, const CampaignManifest& mani
       const std::lock_guard lock(read_mutex);
       for (const int r : rows) {
         const CampaignRow& row = manifest.rows[r];
-        if (!std::filesystem::exists(row.path)) {
-          throw InputError(row.path.string() + ": no such file");
-        }
+        CheckInputFile(row.path);
         records.push_back(LoadOscillogram(row.path, {row.time_column}));
       }
       const CampaignRow& first = manifest.rows[rows.front()];
@@ -350,7 +349,8 @@ std::vector<std::string> CampaignManifest::Inputs() const {
   std::set<std::string> seen;
   for (const auto& row : rows) {
     for (const std::string& path : {row.config, row.path.string()}) {
-      if (!path.empty() && seen.insert(path).second && std::filesystem::exists(path)) {
+      std::error_code unreadable;  // a path that cannot be looked up is no input to protect
+      if (!path.empty() && seen.insert(path).second && std::filesystem::exists(path, unreadable)) {
         inputs.push_back(path);
       }
     }
@@ -420,7 +420,8 @@ CampaignManifest LoadCampaignManifest(const std::filesystem::path& path, const s
     const std::string row_config = cell(i, "config");
     if (!row_config.empty()) {
       row.config = resolve(row_config).string();
-      if (!std::filesystem::is_regular_file(row.config)) {
+      std::error_code unreadable;
+      if (!std::filesystem::is_regular_file(row.config, unreadable)) {
         throw InputError(Where(source, row.line, "config") + ": '" + row.config +
                          "' is not a file");
       }

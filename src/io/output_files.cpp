@@ -87,7 +87,8 @@ void CheckOutputPaths(const std::vector<std::pair<std::string, std::string>>& ou
     }
     std::filesystem::path directory = target.parent_path();
     if (directory.empty()) directory = ".";
-    if (!std::filesystem::is_directory(directory)) {
+    std::error_code unreadable;
+    if (!std::filesystem::is_directory(directory, unreadable)) {
       throw InputError(Describe(option, path) + ": directory " + directory.string() +
                        " does not exist");
     }

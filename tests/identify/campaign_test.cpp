@@ -195,8 +195,12 @@ TEST_CASE("rows of one group are one fit: a shared gap, a bite time per record",
 
 TEST_CASE("a missing and a corrupt record are reported in their rows, and the campaign exits 3",
           "[campaign]") {
-  const Campaign campaign("records/gone.csv,2026-03-01,F1\nrecords/bad.csv,2026-03-02,F1\n");
+  const Campaign campaign(
+      "records/gone.csv,2026-03-01,F1\nrecords/bad.csv,2026-03-02,F1\n"
+      "records/loop.csv,2026-03-03,F1\n");
   WriteText(campaign.dir / "records/bad.csv", "time,spindle\n0,1\n0.001,abc\n");
+  // A link to itself: once an internal error that stopped the campaign.
+  std::filesystem::create_symlink("loop.csv", campaign.dir / "records/loop.csv");
   const auto out = campaign.dir / "out";
   std::filesystem::create_directories(out);
   const auto result = RunMillkit(campaign.Cli(
@@ -205,12 +209,14 @@ TEST_CASE("a missing and a corrupt record are reported in their rows, and the ca
   INFO(result.stderr_text);
   REQUIRE(result.exit_code == 3);
   CHECK_THAT(result.stderr_text, Contains("line 8 (records/gone.csv): failed"));
-  CHECK_THAT(result.stderr_text, Contains("2 of 8 records not ok"));
+  CHECK_THAT(result.stderr_text, Contains("3 of 9 records not ok"));
   const std::string table = ReadText(out / "campaign.csv");
   CHECK_THAT(table, Contains("\"records/gone.csv\",\"2026-03-01\",\"F1\",\"\",failed,\""));
-  CHECK_THAT(table, Contains("gone.csv: no such file"));
+  CHECK_THAT(table, Contains("gone.csv: file not found"));
   CHECK_THAT(table, Contains("\"records/bad.csv\",\"2026-03-02\",\"F1\",\"\",failed,\""));
   CHECK_THAT(table, Contains("bad.csv: line 3, column 'spindle': 'abc' is not a finite number"));
+  CHECK_THAT(table, Contains("\"records/loop.csv\",\"2026-03-03\",\"F1\",\"\",failed,\""));
+  CHECK_THAT(table, Contains("loop.csv: cannot be read"));
   CHECK_THAT(table, Contains("\"spindle.backlash [rad]\",\"spindle.backlash.se [rad]\""));
   int ok_rows = 0;
   for (auto at = table.find(",ok,"); at != std::string::npos; at = table.find(",ok,", at + 1)) {
