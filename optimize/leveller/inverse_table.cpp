@@ -124,6 +124,7 @@ InverseTable ComputeInverseTable(const CsvTable& input, const LevellerConfig& co
   const int c1 = input.Column("y1_mm");
   const int c2 = input.Column("y2_mm");
   RequireNoOutputColumns(input, InverseOutputColumns(options.drive));
+  RequireRows(input, "intermesh targets");
   InverseTable table{input, options.drive, {}};
   for (const auto& cells : input.rows) {
     const double y1 = cells[c1];

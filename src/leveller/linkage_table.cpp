@@ -77,6 +77,10 @@ void RequireNoOutputColumns(const CsvTable& input, const std::vector<std::string
   }
 }
 
+void RequireRows(const CsvTable& input, const std::string& what) {
+  if (input.rows.empty()) throw InputError(input.source + ": no " + what + " listed");
+}
+
 std::string RowLocation(const CsvTable& table, std::size_t row) {
   return table.source + ":" + std::to_string(table.line_numbers[row]);
 }
@@ -88,6 +92,7 @@ ForwardTable ComputeForwardTable(const CsvTable& input, const LevellerConfig& co
   const int c1 = input.Column(hydraulic ? "ah_mm" : "beta1_deg");
   const int c2 = input.Column(hydraulic ? "bg_mm" : "beta2_deg");
   RequireNoOutputColumns(input, ForwardOutputColumns());
+  RequireRows(input, hydraulic ? "cylinder lengths" : "eccentric angles");
   ForwardTable table{input, {}};
   for (std::size_t r = 0; r < input.rows.size(); ++r) {
     const double u = input.rows[r][c1];

@@ -113,7 +113,7 @@ TEST_CASE("The inverse table gives cylinder lengths for the hydraulic drive",
   CHECK(cells[0][8] == "ok");
 }
 
-TEST_CASE("The inverse table refuses a bad encoder resolution and an output column in the input",
+TEST_CASE("The inverse table refuses a bad encoder resolution, an output column and no target",
           "[leveller][inverse_table]") {
   const LevellerConfig config = DefaultLevellerConfig();
   InverseTableOptions options;
@@ -125,4 +125,8 @@ TEST_CASE("The inverse table refuses a bad encoder resolution and an output colu
   const auto clash = millkit::ParseCsv("y1_mm,y2_mm,status\n0,0,1\n", "t.csv");
   CHECK_THROWS_WITH(ComputeInverseTable(clash, config, options),
                     "t.csv: column 'status' is an output column; remove it");
+  // A header and no target: an empty list or the wrong file.
+  CHECK_THROWS_WITH(
+      ComputeInverseTable(millkit::ParseCsv("y1_mm,y2_mm\n", "e.csv"), config, options),
+      "e.csv: no intermesh targets listed");
 }

@@ -55,6 +55,13 @@ TEST_CASE("The forward table refuses inputs outside the working and cylinder ran
   const auto clash = millkit::ParseCsv("beta1_deg,beta2_deg,y2_mm\n0,0,1\n", "c.csv");
   REQUIRE_THROWS_WITH(ComputeForwardTable(clash, config, LinkageDrive::kEccentric),
                       "c.csv: column 'y2_mm' is an output column; remove it");
+  // A header and no row: an empty list or the wrong file, not an empty table.
+  REQUIRE_THROWS_WITH(ComputeForwardTable(millkit::ParseCsv("beta1_deg,beta2_deg\n", "e.csv"),
+                                          config, LinkageDrive::kEccentric),
+                      "e.csv: no eccentric angles listed");
+  REQUIRE_THROWS_WITH(ComputeForwardTable(millkit::ParseCsv("ah_mm,bg_mm\n", "h.csv"), config,
+                                          LinkageDrive::kHydraulic),
+                      "h.csv: no cylinder lengths listed");
   // The hydraulic drive reads the cylinder lengths, not the angles.
   REQUIRE_THROWS_AS(ComputeForwardTable(angles, config, LinkageDrive::kHydraulic),
                     millkit::InputError);

@@ -38,6 +38,9 @@ void CheckCylinderRanges(const HydraulicRange& cylinders, double ah_mm, double b
 // Throws InputError "<source>: column '<c>' is an output column; remove it" for the first of
 // `outputs` that `input` has.
 void RequireNoOutputColumns(const CsvTable& input, const std::vector<std::string>& outputs);
+// Throws InputError when the table has a header and no row: a list of `what` was expected (an
+// empty file or the wrong one, as `leveller table` says of a strip list with no strip).
+void RequireRows(const CsvTable& input, const std::string& what);
 
 // "<source>:<line>" of data row `row`, the prefix of every message about that row.
 std::string RowLocation(const CsvTable& table, std::size_t row);
