@@ -775,8 +775,9 @@ MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
     data.lowpass_apart = data.lowpass_apart && (model_.surfaces().col(y).array() == 0.0).all();
   }
   data.series_norm = data.norm_inf;
-  Eigen::MatrixXd core = m.topLeftCorner(active_, active_);  // the series' matrix
+  Eigen::MatrixXd core;  // the series' matrix when the low-pass rows are apart
   if (data.lowpass_apart) {
+    core = m.topLeftCorner(active_, active_);
     data.lowpass_rows.assign(lowpass_.size() * stride_, 0.0);
     for (size_t r = 0; r < lowpass_.size(); ++r) {
       const int y = lowpass_[r];
@@ -792,7 +793,11 @@ MILLKIT_HOT PhaseData* ExactIntegrator::Data(const Phases& phases) {
   }
   data.growth = std::exp(std::min(data.series_norm * h_, 700.0));
   if (data.series_norm * h_ > kTightGrowthNorm && data.series_norm * h_ <= kMaxTaylorPieces) {
-    data.growth = std::min(data.growth, SupExpNorm(core, data.series_norm, h_));
+    // The series' matrix: the active block itself unless the low-pass rows are apart.
+    data.growth = std::min(
+        data.growth,
+        SupExpNorm(data.lowpass_apart ? core : Eigen::MatrixXd(m.topLeftCorner(active_, active_)),
+                   data.series_norm, h_));
   }
   data.watched = model_.Watched(phases);
   const int count = static_cast<int>(data.watched.size());
