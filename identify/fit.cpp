@@ -36,6 +36,7 @@ void FitOptions::Validate() const {
           "remaining_step_se: must lie in [0, 1]");
   require(rough_step_se >= remaining_step_se && rough_step_se <= 1.0,
           "rough_step_se: must lie in [remaining_step_se, 1]");
+  require(creep_iterations >= 0, "creep_iterations: must be >= 0");
   require(derivative_step > 0.0 && derivative_step < 0.01,
           "derivative_step: must lie in (0, 0.01)");
   require(threads >= 1 && threads <= 256, "threads: must lie in [1, 256]");

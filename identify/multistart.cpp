@@ -5,6 +5,7 @@
 #include <functional>
 #include <numeric>
 #include <random>
+#include <vector>
 
 #include "identify/verdict.h"
 #include "millkit/io/number_format.h"
@@ -36,10 +37,21 @@ bool SamePoint(const std::vector<double>& a, const std::vector<double>& b, doubl
 // A step that changes the cost (½ χ² in noise units) by less than this is a stall.
 constexpr double kStalledCostChange = 1e-3;
 
+}  // namespace
+
+double FloorCost(const FitOptions& options) {
+  return options.creep_iterations * kStalledCostChange;
+}
+
+namespace {
+
 // Ends Levenberg–Marquardt where the Gauss–Newton step still to go from the current point is
 // below options.remaining_step_se standard errors, or below options.rough_step_se after a step
 // that stalled (FitOptions). The current point's Jacobian is the latest one evaluated: Ceres
 // evaluates it at the start and after every accepted step, and only the cost at a rejected one.
+// It also ends a creep: the cost down by no more than creep_iterations × the stall's change over
+// the last creep_iterations iterations, where the Gauss–Newton step promises more than the valley
+// gives (a valley that curves, or a parameter the record hardly sees).
 class CloseEnough final : public ceres::IterationCallback {
  public:
   CloseEnough(const ProjectedResidual& residual, const FitOptions& options)
@@ -52,12 +64,23 @@ class CloseEnough final : public ceres::IterationCallback {
         (stalled && left <= options_.rough_step_se)) {
       return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
     }
+    costs_.push_back(summary.cost);
+    const auto window = static_cast<size_t>(options_.creep_iterations);
+    if (window > 0 && costs_.size() > window &&
+        costs_[costs_.size() - 1 - window] - summary.cost <=
+            static_cast<double>(window) * kStalledCostChange) {
+      crept_ = true;
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
     return ceres::SOLVER_CONTINUE;
   }
+  bool crept() const { return crept_; }
 
  private:
   const ProjectedResidual& residual_;
   const FitOptions& options_;
+  std::vector<double> costs_;  // the current point's cost after each iteration
+  bool crept_ = false;
 };
 
 // Reports each finished iteration to the residual (ProjectedResidual::EndEarly), and, given a
@@ -229,9 +252,13 @@ LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<do
   if (fit.summary.termination_type == ceres::USER_SUCCESS) {
     // Converged by the statistical test: reported as Ceres' own convergence.
     fit.summary.termination_type = ceres::CONVERGENCE;
-    fit.summary.message = "the Gauss-Newton step left is below " +
-                          ShortNumber(options.remaining_step_se) + " standard errors (" +
-                          ShortNumber(options.rough_step_se) + " after a stalled step)";
+    fit.summary.message = close_enough.crept()
+                              ? "creeping: the cost fell by no more than " +
+                                    ShortNumber(FloorCost(options)) + " over the last " +
+                                    std::to_string(options.creep_iterations) + " iterations"
+                              : "the Gauss-Newton step left is below " +
+                                    ShortNumber(options.remaining_step_se) + " standard errors (" +
+                                    ShortNumber(options.rough_step_se) + " after a stalled step)";
   }
   fit.u.resize(phi.size());
   for (size_t i = 0; i < phi.size(); ++i) fit.u[i] = ParameterMap::UnitFromAngle(phi[i]);
@@ -486,7 +513,8 @@ Search GlobalSearch(FitModel* model, const FitConfig& config, const FitOptions& 
   for (int restart = 0; restart < options.profile_restarts; ++restart) {
     const ProfileProbe* lower = nullptr;
     for (const auto& probe : search.probes) {
-      if (probe.cost < minima[search.best].cost && (lower == nullptr || probe.cost < lower->cost)) {
+      if (probe.cost < minima[search.best].cost - FloorCost(options) &&
+          (lower == nullptr || probe.cost < lower->cost)) {
         lower = &probe;
       }
     }

@@ -53,6 +53,11 @@ LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<do
                 bool final_stage, int iterations, const std::vector<int>& frozen = {},
                 const LocalFit* known = nullptr);
 
+// The cost (½ χ²) within which a point lies on the minimum's own floor: what the creep stop lets
+// 25 more iterations gain (FitOptions::creep_iterations × 1e-3). A probe lower by no more is not a
+// lower point (random line 12121: every restart from such a probe creeps and stops as short).
+double FloorCost(const FitOptions& options);
+
 // The length of u − at.u in the angles φ under at.precision: how many standard errors of the
 // linearisation at `at` apart the two points lie, every direction counted (a correlated one
 // too). Infinity when `at` has no precision.

@@ -522,6 +522,7 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
   const double step = options.profile_step;
   const double predicted = 0.5 * step * step * noise_scale * noise_scale;
   const double chi2_per_cost = 2.0 / (noise_scale * noise_scale);
+  const double floor_cost = FloorCost(options);  // lower by no more: the minimum's own floor
   const bool relax = options.profile_relax_widening > 0.0;
   const ProfileRelaxer relaxer(jacobian, fitted, p);
   std::vector<ProfileProbe> followed;  // the points held on followed profiles
@@ -553,7 +554,7 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
       if (probe.empty() || !model.ProjectedResiduals(probe.data(), &r)) continue;
       const double rise = 0.5 * r.squaredNorm() - best_cost;
       flattest = std::min(flattest, rise);
-      if (rise < 0.0) found_lower(i, probe, best_cost + rise);
+      if (rise < -floor_cost) found_lower(i, probe, best_cost + rise);
       if (!relax || !(rise >= 0.0)) continue;
       // The probe relaxed by one Gauss–Newton step of the others: whether it implies a standard
       // error more than profile_relax_widening times the linearised one.
@@ -575,7 +576,7 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
         Eigen::VectorXd r_further;
         if (further.empty() || !model.ProjectedResiduals(further.data(), &r_further)) continue;
         const double further_rise = 0.5 * r_further.squaredNorm() - best_cost;
-        if (further_rise < 0.0) found_lower(i, further, best_cost + further_rise);
+        if (further_rise < -floor_cost) found_lower(i, further, best_cost + further_rise);
         if (!(further_rise >= 0.0) || !relaxed_wider(further, r_further)) continue;
       }
       // The valley curves away from the straight line: follow this side of the profile.
@@ -605,7 +606,7 @@ std::vector<double> ProfileWidening(const FitModel& model, const std::vector<dou
       if (probe.slot != i) continue;
       const double chi2 = (probe.cost - best_cost) * chi2_per_cost;
       if (chi2 < 0.0) {
-        found_lower(i, probe.u, probe.cost);
+        if (probe.cost < best_cost - floor_cost) found_lower(i, probe.u, probe.cost);
         continue;
       }
       if (!(chi2 < options.profile_chi2)) continue;

@@ -81,6 +81,11 @@ struct FitOptions {
   // remaining_step_se = 0 turns both tests off.
   double remaining_step_se = 0.02;
   double rough_step_se = 0.1;
+  // ... or once the cost has fallen by no more than creep_iterations × 1e-3 (½ χ²) over the last
+  // creep_iterations iterations: Levenberg–Marquardt creeps along a floor the Gauss–Newton step
+  // overrates (random line 12024: 300 more iterations moved no estimate by 0.01 of its standard
+  // error and lowered χ² by 0.03). With remaining_step_se; 0: not tested.
+  int creep_iterations = 25;
   double derivative_step = 1e-6;  // in unit coordinates (fraction of the bound range)
   // How the fit differentiates the model, while iterating and for the covariance: the exact
   // solver's forward sensitivities (the default; at a point where they are not available, a
