@@ -106,6 +106,12 @@ slow+="|standard errors: points held on walks widen every parameter they move"
 slow+="|standard errors: what is correlated with a widened parameter widens with it"
 slow+="|verdict not_converged: a gap kicked into the next valley"
 slow+="|verdict ok: starts that stopped on the rough floor"
+# Random line 12024 fitted twice, with and without the creep stop (119 s under the sanitizers on
+# the clean-clone run of 2026-12-06, a slow hour: 1745 s of the 30 minutes), and random line
+# 12121's one fit (45 s): every fit here runs the creep stop (CloseEnough) and its floor
+# (FloorCost); the plain build runs both lines.
+slow+="|verdict ok: Levenberg-Marquardt creeping along the floor ends there"
+slow+="|verdict ok: a probe lower only by the creep stop's slack is not a lower point"
 # The random-line generator's variants over 20 seeds (33 s under the sanitizers, the stage's
 # longest test on 2026-11-28): test support that synthesizes records with the simulation code
 # every other test here runs; the plain build runs it.
