@@ -40,6 +40,8 @@ constexpr double kStalledCostChange = 1e-3;
 }  // namespace
 
 double FloorCost(const FitOptions& options) {
+  // No creep stop without the stop it belongs to (CloseEnough is attached only then): no floor.
+  if (!(options.remaining_step_se > 0.0)) return 0.0;
   return options.creep_iterations * kStalledCostChange;
 }
 

@@ -56,6 +56,7 @@ LocalFit Refine(const FitModel& model, const FitOptions& options, std::vector<do
 // The cost (½ χ²) within which a point lies on the minimum's own floor: what the creep stop lets
 // 25 more iterations gain (FitOptions::creep_iterations × 1e-3). A probe lower by no more is not a
 // lower point (random line 12121: every restart from such a probe creeps and stops as short).
+// 0 without the creep stop (creep_iterations or remaining_step_se 0).
 double FloorCost(const FitOptions& options);
 
 // The length of u − at.u in the angles φ under at.precision: how many standard errors of the

@@ -11,7 +11,7 @@
 # -timeout; run it alone with FUZZ_HARNESSES=driveline_fuzz FUZZ_TIMEOUT=60. mat_record_fuzz
 # replays, among its seeds, five damaged files for which libmatio asked for 2-8 GB before
 # MillKit's own structure check (identify/mat_prescan.h) refused them.
-# Usage: [FUZZ_HARNESSES="a b"] [FUZZ_SECONDS=5] [FUZZ_TIMEOUT=10] scripts/fuzz.sh [BUILD_DIR]
+# Usage: [FUZZ_HARNESSES="a b"] [FUZZ_SECONDS=5] [FUZZ_TIMEOUT=10] [FUZZ_JOBS=N] scripts/fuzz.sh [BUILD_DIR]
 #        (default BUILD_DIR: build-asan)
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
@@ -37,29 +37,53 @@ declare -A seeds=(
 mkdir -p "$build/fuzz/artifacts"
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
-failed=()
 # The harnesses write the inputs of file-reading parsers under $TMPDIR; each run gets a scratch
-# directory of its own in the build tree, removed after it (also after a crash).
-scratch=$build/fuzz/tmp
+# directory of its own in the build tree, removed after it (also after a crash). They run
+# FUZZ_JOBS at a time (default: one per core; each harness is one process on one core, and the
+# stage's time is FUZZ_SECONDS per harness), each reporting into BUILD_DIR/fuzz/<harness>.status.
+jobs=${FUZZ_JOBS:-$(nproc)}
 harnesses=${FUZZ_HARNESSES:-$(printf '%s\n' "${!seeds[@]}" | grep -v '^driveline_fuzz$' | sort)}
-for name in $harnesses; do
-  corpus=$build/fuzz/corpus/$name
+run_one() {
+  local name=$1 start=$SECONDS
+  local corpus=$build/fuzz/corpus/$name scratch=$build/fuzz/tmp/$name
   rm -rf "$corpus" && mkdir -p "$corpus"
   # shellcheck disable=SC2086  # the globs expand here
   [ -z "${seeds[$name]}" ] || cp ${seeds[$name]} "$corpus/"
   [ ! -d "$here/tests/fuzz/corpus/$name" ] || cp "$here/tests/fuzz/corpus/$name"/* "$corpus/"
-  start=$SECONDS
   rm -rf "$scratch" && mkdir -p "$scratch"
   if TMPDIR=$scratch "$build/tests/fuzz/$name" "$corpus" -max_total_time="$seconds" -timeout="$timeout" \
        -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$build/fuzz/artifacts/$name-" \
        > "$build/fuzz/$name.log" 2>&1; then
-    echo "fuzz: $name ok ($(grep -o 'stat::number_of_executed_units: *[0-9]*' "$build/fuzz/$name.log" | grep -o '[0-9]*$') runs, $((SECONDS - start)) s)"
+    echo "fuzz: $name ok ($(grep -o 'stat::number_of_executed_units: *[0-9]*' "$build/fuzz/$name.log" | grep -o '[0-9]*$') runs, $((SECONDS - start)) s)" > "$build/fuzz/$name.status"
   else
+    echo "FAILED" > "$build/fuzz/$name.status"
+  fi
+  rm -rf "$scratch"
+}
+for name in $harnesses; do
+  [ -n "${seeds[$name]+set}" ] || { echo "fuzz: no harness '$name'" >&2; exit 2; }
+done
+running=0
+for name in $harnesses; do
+  rm -f "$build/fuzz/$name.status"
+  run_one "$name" &
+  running=$((running + 1))
+  if [ "$running" -ge "$jobs" ]; then
+    wait -n || true
+    running=$((running - 1))
+  fi
+done
+wait
+failed=()
+for name in $harnesses; do
+  status=$(cat "$build/fuzz/$name.status" 2>/dev/null || echo FAILED)
+  if [ "$status" = FAILED ]; then
     echo "fuzz: $name FAILED, log $build/fuzz/$name.log:" >&2
     tail -40 "$build/fuzz/$name.log" >&2
     failed+=("$name")
+  else
+    echo "$status"
   fi
-  rm -rf "$scratch"
 done
 if [ ${#failed[@]} -gt 0 ]; then
   echo "fuzz: failed: ${failed[*]}" >&2

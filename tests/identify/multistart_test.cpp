@@ -552,4 +552,19 @@ TEST_CASE("A fit whose starts meet early gives the same answer for fewer runs", 
   CHECK(merged.summary.simulations < 0.85 * separate.summary.simulations);
 }
 
+// The minimum's floor (FloorCost): what the creep stop lets its window of iterations gain, and
+// nothing where that stop is off (no creep window, or no remaining-step stop to carry it).
+TEST_CASE("The floor a probe must clear is the creep stop's slack, 0 without that stop", "[fit]") {
+  identify::FitOptions options;
+  CHECK(identify::FloorCost(options) == Approx(options.creep_iterations * 1e-3));
+  CHECK(identify::FloorCost(options) > 0.0);
+  options.creep_iterations = 10;
+  CHECK(identify::FloorCost(options) == Approx(0.01));
+  options.creep_iterations = 0;
+  CHECK(identify::FloorCost(options) == 0.0);
+  options.creep_iterations = 25;
+  options.remaining_step_se = 0.0;
+  CHECK(identify::FloorCost(options) == 0.0);
+}
+
 }  // namespace millkit
